@@ -1,0 +1,148 @@
+"""The ``rankgame`` command line: ``expert``, ``record`` and ``experts``.
+
+Options are generated from the config dataclasses (see :mod:`rankgame.cli_args`). A ``--preset``
+picks the defaults the other options start from, and ``--help`` shows that preset's values.
+Every user error ends in one line on stderr and a non-zero exit status.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import shlex
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import NoReturn
+
+from rankgame.cli_args import add_dataclass_options, dataclass_from_args
+from rankgame.errors import RankGameError
+
+PROG = "rankgame"
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors are one line: ``rankgame: error: ...``."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def _preset_from_argv(argv: Sequence[str], default: str) -> str:
+    """Read ``--preset NAME`` ahead of full parsing, so the preset can set the other defaults."""
+    for i, arg in enumerate(argv):
+        if arg == "--preset" and i + 1 < len(argv):
+            return argv[i + 1]
+        if arg.startswith("--preset="):
+            return arg.split("=", 1)[1]
+    return default
+
+
+def _cmd_expert(argv: Sequence[str]) -> int:
+    from rankgame.expert import ExpertConfig, train_expert
+    from rankgame.policy.sac import SAC_PRESETS
+
+    preset = _preset_from_argv(argv, "modern")
+    if preset not in SAC_PRESETS:
+        raise RankGameError(f"unknown preset {preset!r}; choose from {', '.join(SAC_PRESETS)}")
+    default = ExpertConfig(sac=SAC_PRESETS[preset])
+    parser = _Parser(
+        prog=f"{PROG} expert",
+        description="Train a SAC expert on the true reward, then record trajectories of its best policy.",
+    )
+    parser.add_argument("--preset", choices=list(SAC_PRESETS), default=preset, help="SAC preset (default: modern)")
+    add_dataclass_options(parser, default)
+    cfg = dataclass_from_args(parser.parse_args(argv), default)
+    summary = train_expert(cfg, command=shlex.join([PROG, "expert", *argv]))
+    print(json.dumps(summary, indent=2))
+    return 0
+
+
+@dataclasses.dataclass(frozen=True)
+class RecordConfig:
+    """Options of ``rankgame record``."""
+
+    policy: Path = Path("runs/expert/best_policy.msgpack")
+    """Saved policy to roll out (deterministically)."""
+    out: Path = Path("runs/expert/trajectories.npz")
+    """Trajectory file to write."""
+    episodes: int = 10
+    """Episodes to record."""
+    seed: int = 0
+    """Seed of the first episode's reset (episode i uses seed + i)."""
+    random_episodes: int = 100
+    """Episodes of a uniformly random policy, for the random return in the metadata."""
+
+
+def _cmd_record(argv: Sequence[str]) -> int:
+    from rankgame.expert import record_expert
+
+    parser = _Parser(prog=f"{PROG} record", description="Record trajectories of a saved policy.")
+    add_dataclass_options(parser, RecordConfig())
+    cfg = dataclass_from_args(parser.parse_args(argv), RecordConfig())
+    if cfg.episodes <= 0 or cfg.random_episodes <= 0:
+        raise RankGameError("--episodes and --random-episodes must be positive")
+    summary = record_expert(
+        cfg.policy, cfg.out, cfg.episodes, cfg.seed, cfg.random_episodes, command=shlex.join([PROG, "record", *argv])
+    )
+    print(json.dumps(summary, indent=2))
+    return 0
+
+
+def _cmd_experts(argv: Sequence[str]) -> int:
+    from rankgame.data.experts import expert_table
+
+    parser = _Parser(prog=f"{PROG} experts", description="List the expert data shipped with rankgame.")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    args = parser.parse_args(argv)
+    rows = expert_table()
+    if args.json:
+        print(json.dumps(rows, indent=2))
+        return 0
+    header = f"{'env':<16}{'trajs':>6}{'length':>8}{'return':>12}{'std':>9}{'random':>10}"
+    print(header)
+    for row in rows:
+        print(
+            f"{row['env']:<16}{row['trajectories']:>6}{row['mean_length']:>8.0f}"
+            f"{row['return_mean']:>12.1f}{row['return_std']:>9.1f}{row['random_return']:>10.1f}"
+        )
+    return 0
+
+
+COMMANDS = {
+    "expert": (_cmd_expert, "train a SAC expert on the true reward and record its trajectories"),
+    "record": (_cmd_record, "record trajectories of a saved policy"),
+    "experts": (_cmd_experts, "list the shipped expert data"),
+}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``rankgame`` command."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        lines = [f"usage: {PROG} COMMAND [options]   ({PROG} COMMAND --help for its options)", "", "commands:"]
+        lines += [f"  {name:<9} {text}" for name, (_, text) in COMMANDS.items()]
+        print("\n".join(lines))
+        return 0 if argv else 2
+    if argv[0] in ("-V", "--version"):
+        from rankgame import __version__
+
+        print(f"{PROG} {__version__}")
+        return 0
+    name, rest = argv[0], argv[1:]
+    if name not in COMMANDS:
+        print(f"{PROG}: error: unknown command {name!r}; choose from {', '.join(COMMANDS)}", file=sys.stderr)
+        return 2
+    try:
+        return COMMANDS[name][0](rest)
+    except RankGameError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,104 @@
+"""Command-line options generated from typed, documented config dataclasses.
+
+Each dataclass field becomes ``--field-name`` (nested dataclasses become ``--prefix.field-name``),
+its type decides parsing, its default comes from the dataclass instance given (so presets show
+their own defaults in ``--help``), and the string literal written under the field is its help text.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import dataclasses
+import inspect
+import textwrap
+import types
+import typing
+from functools import cache
+from pathlib import Path
+from typing import Any, Literal, Union, get_args, get_origin
+
+
+@cache
+def field_docs(cls: type) -> dict[str, str]:
+    """The string literal that follows each field in the class body (its attribute docstring)."""
+    try:
+        source = textwrap.dedent(inspect.getsource(cls))
+    except (OSError, TypeError):
+        return {}
+    body = ast.parse(source).body[0]
+    docs: dict[str, str] = {}
+    assert isinstance(body, ast.ClassDef)
+    for node, following in zip(body.body, body.body[1:]):
+        if (
+            isinstance(node, ast.AnnAssign)
+            and isinstance(node.target, ast.Name)
+            and isinstance(following, ast.Expr)
+            and isinstance(following.value, ast.Constant)
+            and isinstance(following.value.value, str)
+        ):
+            docs[node.target.id] = " ".join(following.value.value.split())
+    return docs
+
+
+def _option(prefix: str, name: str) -> str:
+    return "--" + prefix + name.replace("_", "-")
+
+
+def _parser_for(annotation: Any) -> tuple[Any, dict[str, Any]]:
+    """argparse ``type``/``choices``/``nargs`` for a field annotation."""
+    origin, args = get_origin(annotation), get_args(annotation)
+    if origin in (Union, types.UnionType):
+        inner = [a for a in args if a is not type(None)]
+        if len(inner) == 1:
+            base, extra = _parser_for(inner[0])
+            return lambda text: None if text.lower() == "none" else base(text), extra
+    if origin is Literal:
+        return str, {"choices": list(args)}
+    if origin is tuple:
+        return args[0], {"nargs": "+"}
+    if annotation in (int, float, str, Path):
+        return annotation, {}
+    raise TypeError(f"unsupported option type {annotation!r}")
+
+
+def add_dataclass_options(parser: argparse.ArgumentParser, default: Any, prefix: str = "") -> None:
+    """Add one option per field of the dataclass instance ``default`` (recursing into nested ones)."""
+    cls = type(default)
+    hints = typing.get_type_hints(cls)
+    docs = field_docs(cls)
+    group = parser.add_argument_group(prefix.rstrip(".") or None)
+    for f in dataclasses.fields(cls):
+        if not f.init:
+            continue
+        value = getattr(default, f.name)
+        if dataclasses.is_dataclass(value):
+            add_dataclass_options(parser, value, prefix + f.name + ".")
+            continue
+        dest = prefix + f.name
+        help_text = docs.get(f.name, "")
+        if hints[f.name] is bool:
+            group.add_argument(
+                _option(prefix, f.name), dest=dest, default=value, action=argparse.BooleanOptionalAction, help=help_text
+            )
+            continue
+        kind, extra = _parser_for(hints[f.name])
+        shown = " ".join(map(str, value)) if isinstance(value, tuple) else value
+        group.add_argument(
+            _option(prefix, f.name), dest=dest, type=kind, default=value, help=f"{help_text} (default: {shown})", **extra
+        )
+
+
+def dataclass_from_args(namespace: argparse.Namespace, default: Any, prefix: str = "") -> Any:
+    """Rebuild the dataclass from parsed options, starting from ``default``."""
+    changes = {}
+    for f in dataclasses.fields(default):
+        if not f.init:
+            continue
+        value = getattr(default, f.name)
+        if dataclasses.is_dataclass(value):
+            changes[f.name] = dataclass_from_args(namespace, value, prefix + f.name + ".")
+        else:
+            parsed = getattr(namespace, prefix + f.name)
+            changes[f.name] = tuple(parsed) if isinstance(value, tuple) and parsed is not None else parsed
+    return dataclasses.replace(default, **changes)

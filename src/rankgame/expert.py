@@ -1,0 +1,209 @@
+"""Train an expert with SAC on the true reward and record its trajectories (``rankgame expert``).
+
+Writes into the output folder:
+``policy.msgpack`` (last policy), ``best_policy.msgpack`` (best evaluation so far),
+``trajectories.npz`` (episodes of the best policy, see :mod:`rankgame.data.trajectories`),
+``metrics.csv`` and ``tb/`` (TensorBoard).
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import platform
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+from tqdm import tqdm
+
+from rankgame.data.trajectories import save_trajectories
+from rankgame.envs.make import make_env
+from rankgame.envs.rollout import episode_returns, random_policy, rollout
+from rankgame.errors import RankGameError
+from rankgame.logging import RunLogger
+from rankgame.policy.io import load_policy, save_policy
+from rankgame.policy.learner import SACLearner
+from rankgame.policy.sac import SACConfig
+
+#: Evaluation and recording episodes are seeded apart from training so they never share resets.
+EVAL_SEED_OFFSET = 10_000
+RECORD_SEED_OFFSET = 20_000
+RANDOM_SEED_OFFSET = 30_000
+
+
+@dataclass(frozen=True)
+class ExpertConfig:
+    """Options of ``rankgame expert``."""
+
+    env: str = "Hopper-v5"
+    """Gymnasium id of the task."""
+    steps: int = 1_000_000
+    """Environment steps of SAC training."""
+    seed: int = 0
+    """Seed of everything random in the run."""
+    out: Path = Path("runs/expert")
+    """Output folder (created if needed)."""
+    eval_every: int = 10_000
+    """Environment steps between evaluations of the deterministic policy."""
+    eval_episodes: int = 5
+    """Episodes per evaluation."""
+    trajectories: int = 10
+    """Expert episodes to record at the end, from the best evaluated policy."""
+    random_episodes: int = 100
+    """Episodes of a uniformly random policy, to record the random return used for normalized scores."""
+    tensorboard: bool = True
+    """Also write TensorBoard event files to OUT/tb."""
+    progress: bool = True
+    """Show a progress bar."""
+    sac: SACConfig = field(default_factory=SACConfig)
+
+    def validate(self) -> None:
+        """Raise :class:`RankGameError` for values that make no sense."""
+        if self.steps <= 0 or self.eval_every <= 0 or self.eval_episodes <= 0:
+            raise RankGameError("--steps, --eval-every and --eval-episodes must be positive")
+        if self.trajectories <= 0 or self.random_episodes <= 0:
+            raise RankGameError("--trajectories and --random-episodes must be positive")
+        try:
+            self.sac.validate()
+        except ValueError as exc:
+            raise RankGameError(f"bad SAC setting: {exc}") from None
+
+
+def library_versions() -> dict[str, str]:
+    """Versions of the libraries that decide the numbers (recorded in data files)."""
+    names = ("rankgame", "gymnasium", "mujoco", "jax", "jaxlib", "flax", "optax", "numpy")
+    versions = {"python": platform.python_version()}
+    for name in names:
+        try:
+            versions[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            versions[name] = "unknown"
+    return versions
+
+
+def random_return(env_id: str, episodes: int, seed: int) -> tuple[float, float]:
+    """Mean and std of the return of uniformly random actions over ``episodes`` episodes."""
+    env = make_env(env_id)
+    returns = episode_returns(env, random_policy(env, seed), episodes, seed)
+    env.close()
+    return float(returns.mean()), float(returns.std())
+
+
+def record_expert(
+    policy_path: Path, out: Path, episodes: int, seed: int, random_episodes: int, **metadata: Any
+) -> dict[str, Any]:
+    """Roll out a saved policy deterministically and write its trajectories with their provenance."""
+    saved = load_policy(policy_path)
+    env = make_env(saved.env_id)
+    trajectories = rollout(env, saved.policy_fn(), episodes, seed)
+    env.close()
+    rand_mean, rand_std = random_return(saved.env_id, random_episodes, seed + RANDOM_SEED_OFFSET)
+    save_trajectories(
+        out,
+        saved.env_id,
+        trajectories,
+        **metadata,
+        source="expert",
+        policy_metadata=saved.metadata,
+        record_seed=seed,
+        random_return_mean=rand_mean,
+        random_return_std=rand_std,
+        random_episodes=random_episodes,
+        versions=library_versions(),
+    )
+    returns = [t.ret for t in trajectories]
+    return {"return_mean": float(np.mean(returns)), "return_std": float(np.std(returns)), "random_return": rand_mean}
+
+
+LOG_COLUMNS = (
+    "env_steps",
+    "wall_s",
+    "steps_per_s",
+    "train_return",
+    "eval_return",
+    "eval_return_std",
+    "losses/critic",
+    "losses/actor",
+    "losses/alpha",
+    "losses/entropy",
+    "losses/q",
+)
+
+
+def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any]:
+    """Train SAC on the environment reward, keep the best evaluated policy and record its episodes."""
+    cfg.validate()
+    out = Path(cfg.out)
+    env = make_env(cfg.env)
+    eval_env = make_env(cfg.env)
+    out.mkdir(parents=True, exist_ok=True)
+    learner = SACLearner(env, cfg.sac, cfg.seed)
+    spec = learner.spec
+    logger = RunLogger(out, LOG_COLUMNS, tensorboard=cfg.tensorboard)
+    command = command or " ".join(sys.argv)
+    provenance = {"command": command, "seed": cfg.seed, "config": _jsonable(asdict(cfg))}
+    best_return, best_step = -np.inf, 0
+    train_return = float("nan")
+    metrics: dict[str, float] = {}
+    start = time.perf_counter()
+    eval_seconds = 0.0
+    bar = tqdm(total=cfg.steps, disable=not cfg.progress, unit="step", dynamic_ncols=True, desc=cfg.env)
+    for step in range(1, cfg.steps + 1):
+        result = learner.env_step()
+        if result.episode_return is not None:
+            train_return = result.episode_return
+        metrics = learner.maybe_update() or metrics
+        bar.update(1)
+        if step % cfg.eval_every == 0 or step == cfg.steps:
+            eval_start = time.perf_counter()
+            returns = episode_returns(eval_env, learner.policy(), cfg.eval_episodes, cfg.seed + EVAL_SEED_OFFSET)
+            eval_seconds += time.perf_counter() - eval_start
+            wall = time.perf_counter() - start
+            logger.log(
+                {
+                    "env_steps": step,
+                    "wall_s": wall,
+                    "steps_per_s": step / max(wall - eval_seconds, 1e-9),
+                    "train_return": train_return,
+                    "eval_return": float(returns.mean()),
+                    "eval_return_std": float(returns.std()),
+                    **metrics,
+                }
+            )
+            params = jax.device_get(learner.state.actor_params)
+            policy_meta = {**provenance, "env_steps": step, "eval_return": float(returns.mean())}
+            save_policy(out / "policy.msgpack", learner.sac, params, cfg.env, spec.act_low, spec.act_high, **policy_meta)
+            if returns.mean() > best_return:
+                best_return, best_step = float(returns.mean()), step
+                save_policy(
+                    out / "best_policy.msgpack", learner.sac, params, cfg.env, spec.act_low, spec.act_high, **policy_meta
+                )
+            bar.set_postfix(eval=f"{returns.mean():.0f}", best=f"{best_return:.0f}")
+    bar.close()
+    logger.close()
+    summary = record_expert(
+        out / "best_policy.msgpack",
+        out / "trajectories.npz",
+        cfg.trajectories,
+        cfg.seed + RECORD_SEED_OFFSET,
+        cfg.random_episodes,
+        command=command,
+        train_seed=cfg.seed,
+        train_steps=cfg.steps,
+        best_step=best_step,
+    )
+    return {"env": cfg.env, "best_eval_return": best_return, "best_step": best_step, **summary}
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (tuple, list)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, Path):
+        return str(value)
+    return value

@@ -1,0 +1,140 @@
+"""The policy player in an environment: acting, storing transitions and fused SAC updates.
+
+:class:`SACLearner` owns one environment, one replay buffer and one :class:`~rankgame.policy.sac.SAC`.
+Both the expert trainer (environment reward) and the ranking game (learned reward) drive it the
+same way: ``env_step()`` once per environment step, then ``maybe_update(reward_params)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import jax
+import numpy as np
+
+from rankgame.envs.make import env_spec
+from rankgame.envs.rollout import PolicyFn, to_env_action, to_normalized_action
+from rankgame.policy.buffer import ReplayBuffer
+from rankgame.policy.sac import SAC, RewardFn, SACConfig, SACState, env_reward
+
+
+@dataclass
+class StepResult:
+    """What one environment step produced; ``episode_return`` is set when an episode ended."""
+
+    obs: np.ndarray
+    act: np.ndarray  # environment units
+    next_obs: np.ndarray
+    terminated: bool
+    truncated: bool
+    episode_return: float | None = None
+    episode_length: int | None = None
+
+
+class SACLearner:
+    """SAC acting in ``env`` and learning from its replay buffer.
+
+    Args:
+        env: a continuous-control environment (see :func:`rankgame.envs.make.make_env`).
+        config: SAC hyperparameters.
+        seed: seeds parameters (``jax.random``), exploration noise and batch sampling (NumPy) and
+            the environment's first reset; the same seed gives the same numbers.
+        reward_fn: labels sampled batches with rewards (default: the environment's reward).
+        store_env_reward: keep the environment reward in the buffer (needed by :func:`env_reward`).
+    """
+
+    def __init__(
+        self,
+        env: gym.Env,
+        config: SACConfig,
+        seed: int,
+        reward_fn: RewardFn = env_reward,
+        store_env_reward: bool = True,
+    ) -> None:
+        self.env = env
+        self.spec = env_spec(env)
+        self.config = config
+        self.sac = SAC(self.spec.obs_dim, self.spec.act_dim, config, reward_fn=reward_fn)
+        self.state: SACState = self.sac.init(jax.random.key(seed))
+        extras = ("rews",) if store_env_reward else ()
+        self.buffer = ReplayBuffer(config.buffer_size, self.spec.obs_dim, self.spec.act_dim, extras=extras)
+        self.rng = np.random.default_rng(seed)
+        self.env_steps = 0
+        self._obs, _ = env.reset(seed=seed)
+        self._episode_return = 0.0
+        self._episode_length = 0
+        self._updates_owed = 0.0
+
+    def env_step(self) -> StepResult:
+        """Take one action (uniformly random during the first ``start_steps``) and store the transition."""
+        if self.env_steps < self.config.start_steps:
+            act_norm = self.rng.uniform(-1.0, 1.0, self.spec.act_dim).astype(np.float32)
+        else:
+            noise = self.rng.standard_normal((1, self.spec.act_dim)).astype(np.float32)
+            act_norm = np.asarray(self.sac.act(self.state.actor_params, self._obs[None], noise))[0]
+        act = to_env_action(act_norm, self.spec.act_low, self.spec.act_high)
+        next_obs, rew, terminated, truncated, _ = self.env.step(act)
+        transition = {"obs": self._obs, "acts": act_norm, "next_obs": next_obs, "dones": float(terminated)}
+        if "rews" in self.buffer.data:
+            transition["rews"] = float(rew)
+        self.buffer.add(**transition)
+        result = StepResult(self._obs, act, next_obs, bool(terminated), bool(truncated))
+        self.env_steps += 1
+        self._episode_return += float(rew)
+        self._episode_length += 1
+        if terminated or truncated:
+            result.episode_return, result.episode_length = self._episode_return, self._episode_length
+            self._obs, _ = self.env.reset()
+            self._episode_return, self._episode_length = 0.0, 0
+        else:
+            self._obs = next_obs
+        return result
+
+    def maybe_update(self, reward_params: Any = None) -> dict[str, float] | None:
+        """Run the fused SAC updates that are due after this environment step; metrics if any ran.
+
+        Every ``update_every`` steps (once ``update_after`` steps are collected) this performs
+        ``update_every * updates_per_step`` gradient steps in one jitted call.
+        """
+        cfg = self.config
+        if self.env_steps < cfg.update_after or self.env_steps % cfg.update_every != 0:
+            return None
+        self._updates_owed += cfg.update_every * cfg.updates_per_step
+        n_updates = int(self._updates_owed)
+        if n_updates == 0:
+            return None
+        self._updates_owed -= n_updates
+        batches = self.buffer.sample(self.rng, n_updates, cfg.batch_size)
+        self.state, metrics = self.sac.update(self.state, batches, reward_params)
+        return {key: float(value) for key, value in metrics.items()}
+
+    def policy(self, deterministic: bool = True) -> PolicyFn:
+        """The current policy as ``obs (obs_dim,) -> action (act_dim,)`` in environment units."""
+        actor_params = self.state.actor_params
+        return make_policy_fn(self.sac, actor_params, self.spec.act_low, self.spec.act_high, self.rng, deterministic)
+
+    def normalize_actions(self, acts: np.ndarray) -> np.ndarray:
+        """Environment-unit actions ``(..., act_dim)`` to SAC's normalized box."""
+        return to_normalized_action(acts, self.spec.act_low, self.spec.act_high)
+
+
+def make_policy_fn(
+    sac: SAC,
+    actor_params: Any,
+    act_low: np.ndarray,
+    act_high: np.ndarray,
+    rng: np.random.Generator | None = None,
+    deterministic: bool = True,
+) -> PolicyFn:
+    """Wrap actor parameters as a :data:`PolicyFn` (mean action when deterministic)."""
+    zeros = np.zeros((1, sac.act_dim), np.float32)
+    rng = rng if rng is not None else np.random.default_rng(0)
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        noise = zeros if deterministic else rng.standard_normal((1, sac.act_dim)).astype(np.float32)
+        act = np.asarray(sac.act(actor_params, np.asarray(obs, np.float32)[None], noise))[0]
+        return to_env_action(act, act_low, act_high)
+
+    return policy
