@@ -1,4 +1,4 @@
-"""The ``rankgame`` command line: ``expert``, ``record`` and ``experts``.
+"""The ``rankgame`` command line: ``train``, ``expert``, ``record`` and ``experts``.
 
 Options are generated from the config dataclasses (see :mod:`rankgame.cli_args`). A ``--preset``
 picks the defaults the other options start from, and ``--help`` shows that preset's values.
@@ -59,6 +59,26 @@ def _cmd_expert(argv: Sequence[str]) -> int:
     return 0
 
 
+def _cmd_train(argv: Sequence[str]) -> int:
+    from rankgame.game.loop import TrainConfig, train
+    from rankgame.policy.sac import SAC_PRESETS
+
+    preset = _preset_from_argv(argv, "paper")
+    if preset not in SAC_PRESETS:
+        raise RankGameError(f"unknown preset {preset!r}; choose from {', '.join(SAC_PRESETS)}")
+    default = TrainConfig(sac=SAC_PRESETS[preset])
+    parser = _Parser(
+        prog=f"{PROG} train",
+        description="Imitate an expert by playing the ranking game (RANK-PAL / RANK-RAL / IMIT).",
+    )
+    parser.add_argument("--preset", choices=list(SAC_PRESETS), default=preset, help="SAC preset (default: paper)")
+    add_dataclass_options(parser, default)
+    cfg = dataclass_from_args(parser.parse_args(argv), default)
+    summary = train(cfg, command=shlex.join([PROG, "train", *argv]))
+    print(json.dumps(summary, indent=2))
+    return 0
+
+
 @dataclasses.dataclass(frozen=True)
 class RecordConfig:
     """Options of ``rankgame record``."""
@@ -111,6 +131,7 @@ def _cmd_experts(argv: Sequence[str]) -> int:
 
 
 COMMANDS = {
+    "train": (_cmd_train, "imitate an expert with the ranking game (rank-pal-auto, rank-ral-auto, ...)"),
     "expert": (_cmd_expert, "train a SAC expert on the true reward and record its trajectories"),
     "record": (_cmd_record, "record trajectories of a saved policy"),
     "experts": (_cmd_experts, "list the shipped expert data"),

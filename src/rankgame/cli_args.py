@@ -29,7 +29,7 @@ def field_docs(cls: type) -> dict[str, str]:
     body = ast.parse(source).body[0]
     docs: dict[str, str] = {}
     assert isinstance(body, ast.ClassDef)
-    for node, following in zip(body.body, body.body[1:]):
+    for node, following in zip(body.body, body.body[1:], strict=False):
         if (
             isinstance(node, ast.AnnAssign)
             and isinstance(node.target, ast.Name)
@@ -85,7 +85,12 @@ def add_dataclass_options(parser: argparse.ArgumentParser, default: Any, prefix:
         kind, extra = _parser_for(hints[f.name])
         shown = " ".join(map(str, value)) if isinstance(value, tuple) else value
         group.add_argument(
-            _option(prefix, f.name), dest=dest, type=kind, default=value, help=f"{help_text} (default: {shown})", **extra
+            _option(prefix, f.name),
+            dest=dest,
+            type=kind,
+            default=value,
+            help=f"{help_text} (default: {shown})",
+            **extra,
         )
 
 

@@ -176,11 +176,19 @@ def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any
             )
             params = jax.device_get(learner.state.actor_params)
             policy_meta = {**provenance, "env_steps": step, "eval_return": float(returns.mean())}
-            save_policy(out / "policy.msgpack", learner.sac, params, cfg.env, spec.act_low, spec.act_high, **policy_meta)
+            save_policy(
+                out / "policy.msgpack", learner.sac, params, cfg.env, spec.act_low, spec.act_high, **policy_meta
+            )
             if returns.mean() > best_return:
                 best_return, best_step = float(returns.mean()), step
                 save_policy(
-                    out / "best_policy.msgpack", learner.sac, params, cfg.env, spec.act_low, spec.act_high, **policy_meta
+                    out / "best_policy.msgpack",
+                    learner.sac,
+                    params,
+                    cfg.env,
+                    spec.act_low,
+                    spec.act_high,
+                    **policy_meta,
                 )
             bar.set_postfix(eval=f"{returns.mean():.0f}", best=f"{best_return:.0f}")
     bar.close()

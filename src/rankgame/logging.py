@@ -15,7 +15,14 @@ class RunLogger:
     are written, so a killed run leaves only whole rows behind.
     """
 
-    def __init__(self, out_dir: Path, columns: Sequence[str], tensorboard: bool = True, step_key: str = "env_steps"):
+    def __init__(
+        self,
+        out_dir: Path,
+        columns: Sequence[str],
+        tensorboard: bool = True,
+        step_key: str = "env_steps",
+        purge_step: int | None = None,
+    ):
         self.path = Path(out_dir) / "metrics.csv"
         self.columns = list(columns)
         self.step_key = step_key
@@ -29,7 +36,8 @@ class RunLogger:
         if tensorboard:
             from tensorboardX import SummaryWriter
 
-            self._tb = SummaryWriter(str(Path(out_dir) / "tb"))
+            # purge_step makes TensorBoard drop events a resumed run logs again.
+            self._tb = SummaryWriter(str(Path(out_dir) / "tb"), purge_step=purge_step)
 
     def log(self, row: Mapping[str, float | int]) -> None:
         """Write one row; keys outside the columns go to TensorBoard only."""

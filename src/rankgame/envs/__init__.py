@@ -1,0 +1,5 @@
+"""Environments: the factory for Gymnasium tasks, rollouts, and small built-in test tasks."""
+
+from rankgame.envs.toy import register_toy_envs
+
+register_toy_envs()

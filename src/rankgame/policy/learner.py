@@ -18,6 +18,7 @@ from rankgame.envs.make import env_spec
 from rankgame.envs.rollout import PolicyFn, to_env_action, to_normalized_action
 from rankgame.policy.buffer import ReplayBuffer
 from rankgame.policy.sac import SAC, RewardFn, SACConfig, SACState, env_reward
+from rankgame.reward.features import absorbing_obs, flag_obs
 
 
 @dataclass
@@ -43,6 +44,10 @@ class SACLearner:
             the environment's first reset; the same seed gives the same numbers.
         reward_fn: labels sampled batches with rewards (default: the environment's reward).
         store_env_reward: keep the environment reward in the buffer (needed by :func:`env_reward`).
+        absorbing: DAC-style absorbing states (see :mod:`rankgame.reward.features`): observations get
+            an absorbing flag, and a terminal step is stored as ``s -> s_abs`` followed by the
+            self-loop ``s_abs -> s_abs``, neither with a terminal mask, so the value of ending an
+            episode is learned from the reward of ``s_abs``.
     """
 
     def __init__(
@@ -52,14 +57,17 @@ class SACLearner:
         seed: int,
         reward_fn: RewardFn = env_reward,
         store_env_reward: bool = True,
+        absorbing: bool = False,
     ) -> None:
         self.env = env
         self.spec = env_spec(env)
         self.config = config
-        self.sac = SAC(self.spec.obs_dim, self.spec.act_dim, config, reward_fn=reward_fn)
+        self.absorbing = absorbing
+        sac_obs_dim = self.spec.obs_dim + int(absorbing)
+        self.sac = SAC(sac_obs_dim, self.spec.act_dim, config, reward_fn=reward_fn)
         self.state: SACState = self.sac.init(jax.random.key(seed))
         extras = ("rews",) if store_env_reward else ()
-        self.buffer = ReplayBuffer(config.buffer_size, self.spec.obs_dim, self.spec.act_dim, extras=extras)
+        self.buffer = ReplayBuffer(config.buffer_size, sac_obs_dim, self.spec.act_dim, extras=extras)
         self.rng = np.random.default_rng(seed)
         self.env_steps = 0
         self._obs, _ = env.reset(seed=seed)
@@ -73,13 +81,11 @@ class SACLearner:
             act_norm = self.rng.uniform(-1.0, 1.0, self.spec.act_dim).astype(np.float32)
         else:
             noise = self.rng.standard_normal((1, self.spec.act_dim)).astype(np.float32)
-            act_norm = np.asarray(self.sac.act(self.state.actor_params, self._obs[None], noise))[0]
+            obs = self._policy_obs(self._obs)[None]
+            act_norm = np.asarray(self.sac.act(self.state.actor_params, obs, noise))[0]
         act = to_env_action(act_norm, self.spec.act_low, self.spec.act_high)
         next_obs, rew, terminated, truncated, _ = self.env.step(act)
-        transition = {"obs": self._obs, "acts": act_norm, "next_obs": next_obs, "dones": float(terminated)}
-        if "rews" in self.buffer.data:
-            transition["rews"] = float(rew)
-        self.buffer.add(**transition)
+        self._store(self._obs, act_norm, next_obs, bool(terminated), float(rew))
         result = StepResult(self._obs, act, next_obs, bool(terminated), bool(truncated))
         self.env_steps += 1
         self._episode_return += float(rew)
@@ -91,6 +97,27 @@ class SACLearner:
         else:
             self._obs = next_obs
         return result
+
+    def reset_episode(self, seed: int | None = None) -> None:
+        """Abandon the running episode and start a new one (used when resuming from a checkpoint)."""
+        self._obs, _ = self.env.reset(seed=seed)
+        self._episode_return, self._episode_length = 0.0, 0
+
+    def _policy_obs(self, obs: np.ndarray) -> np.ndarray:
+        return flag_obs(np.asarray(obs, np.float32)) if self.absorbing else obs
+
+    def _store(self, obs: np.ndarray, act_norm: np.ndarray, next_obs: np.ndarray, terminated: bool, rew: float) -> None:
+        extra = {"rews": rew} if "rews" in self.buffer.data else {}
+        if not self.absorbing:
+            self.buffer.add(obs=obs, acts=act_norm, next_obs=next_obs, dones=float(terminated), **extra)
+            return
+        if not terminated:
+            self.buffer.add(obs=flag_obs(obs), acts=act_norm, next_obs=flag_obs(next_obs), dones=0.0, **extra)
+            return
+        s_abs = absorbing_obs(self.spec.obs_dim)
+        self.buffer.add(obs=flag_obs(obs), acts=act_norm, next_obs=s_abs, dones=0.0, **extra)
+        no_act = np.zeros(self.spec.act_dim, np.float32)
+        self.buffer.add(obs=s_abs, acts=no_act, next_obs=s_abs, dones=0.0, **({"rews": 0.0} if extra else {}))
 
     def maybe_update(self, reward_params: Any = None) -> dict[str, float] | None:
         """Run the fused SAC updates that are due after this environment step; metrics if any ran.
@@ -113,7 +140,8 @@ class SACLearner:
     def policy(self, deterministic: bool = True) -> PolicyFn:
         """The current policy as ``obs (obs_dim,) -> action (act_dim,)`` in environment units."""
         actor_params = self.state.actor_params
-        return make_policy_fn(self.sac, actor_params, self.spec.act_low, self.spec.act_high, self.rng, deterministic)
+        policy = make_policy_fn(self.sac, actor_params, self.spec.act_low, self.spec.act_high, self.rng, deterministic)
+        return (lambda obs: policy(flag_obs(np.asarray(obs, np.float32)))) if self.absorbing else policy
 
     def normalize_actions(self, acts: np.ndarray) -> np.ndarray:
         """Environment-unit actions ``(..., act_dim)`` to SAC's normalized box."""

@@ -303,7 +303,9 @@ class SAC:
         }
         return new_state, metrics
 
-    def _update_many(self, state: SACState, batches: Batch, reward_params: Any) -> tuple[SACState, dict[str, jax.Array]]:
+    def _update_many(
+        self, state: SACState, batches: Batch, reward_params: Any
+    ) -> tuple[SACState, dict[str, jax.Array]]:
         """``n`` fused gradient steps over ``batches`` of shape ``(n, batch_size, ...)``; metrics averaged."""
 
         def step(carry: SACState, batch: Batch) -> tuple[SACState, dict[str, jax.Array]]:

@@ -1,0 +1,62 @@
+"""Checkpoints: pytrees, NumPy arrays and JSON metadata in one ``.npz``, written atomically.
+
+A run killed at any moment (even ``kill -9``) leaves either the previous checkpoint or the new one,
+never a half-written file.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+
+from rankgame.atomic import atomic_write
+from rankgame.errors import RankGameError
+
+
+def _is_key(leaf: Any) -> bool:
+    return isinstance(leaf, jax.Array) and jax.dtypes.issubdtype(leaf.dtype, jax.dtypes.prng_key)
+
+
+def flatten_tree(prefix: str, tree: Any) -> dict[str, np.ndarray]:
+    """Leaves of ``tree`` as ``{f"{prefix}/{i}": array}`` (PRNG keys stored as their raw data)."""
+    leaves = jax.tree.leaves(tree)
+    return {f"{prefix}/{i}": np.asarray(jax.random.key_data(x) if _is_key(x) else x) for i, x in enumerate(leaves)}
+
+
+def unflatten_tree(prefix: str, arrays: dict[str, np.ndarray], template: Any) -> Any:
+    """Inverse of :func:`flatten_tree`, using ``template`` for structure, dtypes and key types."""
+    leaves, treedef = jax.tree.flatten(template)
+    restored = []
+    for i, like in enumerate(leaves):
+        value = arrays[f"{prefix}/{i}"]
+        if _is_key(like):
+            restored.append(jax.random.wrap_key_data(value, impl=jax.random.key_impl(like)))
+        else:
+            if value.shape != np.shape(like):
+                raise RankGameError(f"checkpoint does not match this configuration ({prefix} leaf {i}: {value.shape})")
+            restored.append(jax.numpy.asarray(value, dtype=like.dtype))
+    return jax.tree.unflatten(treedef, restored)
+
+
+def save_checkpoint(path: Path, metadata: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+    """Write ``arrays`` and JSON ``metadata`` atomically to ``path``."""
+    payload = {"metadata": np.asarray(json.dumps(metadata)), **arrays}
+    atomic_write(path, lambda handle: np.savez(handle, **payload))
+
+
+def load_checkpoint(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Read a checkpoint written by :func:`save_checkpoint`."""
+    if not path.is_file():
+        raise RankGameError(f"no checkpoint to resume from at {path}")
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            arrays = {key: archive[key] for key in archive.files}
+        metadata = json.loads(str(arrays.pop("metadata")))
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as exc:
+        raise RankGameError(f"{path}: unreadable checkpoint ({exc})") from None
+    return metadata, arrays

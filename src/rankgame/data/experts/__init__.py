@@ -1,0 +1,61 @@
+"""Expert trajectories shipped with rankgame, one ``<env_id>.npz`` file per task.
+
+Each file was written by ``rankgame expert`` (its metadata keeps the exact command, seed and
+library versions) and also records the mean return of a uniformly random policy, so that scores
+can be normalized as ``100 (R - R_random) / (R_expert - R_random)``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rankgame.data.trajectories import TrajectoryFile, load_trajectories
+from rankgame.errors import RankGameError
+
+EXPERT_DIR = Path(__file__).parent
+
+
+def shipped_envs() -> list[str]:
+    """Environment ids with shipped expert data, sorted."""
+    return sorted(path.stem for path in EXPERT_DIR.glob("*.npz"))
+
+
+def shipped_expert_path(env_id: str) -> Path:
+    """Path of the shipped expert file of ``env_id``; a :class:`RankGameError` if there is none."""
+    path = EXPERT_DIR / f"{env_id}.npz"
+    if not path.is_file():
+        available = ", ".join(shipped_envs()) or "none"
+        raise RankGameError(f"no shipped expert data for {env_id!r} (available: {available}); pass your own file")
+    return path
+
+
+def load_shipped_expert(env_id: str) -> TrajectoryFile:
+    """Load and validate the shipped expert trajectories of ``env_id``."""
+    return load_trajectories(shipped_expert_path(env_id), env_id=env_id)
+
+
+def normalized_score(ret: float | np.ndarray, expert_return: float, random_return: float) -> float | np.ndarray:
+    """``100 (R - R_random) / (R_expert - R_random)``: 0 is random, 100 is the expert."""
+    return 100.0 * (ret - random_return) / (expert_return - random_return)
+
+
+def expert_summary(data: TrajectoryFile) -> dict[str, Any]:
+    """One row of ``rankgame experts``: counts, lengths, returns and the random return."""
+    returns = data.returns
+    return {
+        "env": data.env_id,
+        "trajectories": len(data.trajectories),
+        "mean_length": float(np.mean([len(t) for t in data.trajectories])),
+        "return_mean": float(returns.mean()),
+        "return_std": float(returns.std()),
+        "random_return": float(data.metadata.get("random_return_mean", float("nan"))),
+        "command": data.metadata.get("command", ""),
+    }
+
+
+def expert_table() -> list[dict[str, Any]]:
+    """Summaries of every shipped expert file."""
+    return [expert_summary(load_shipped_expert(env_id)) for env_id in shipped_envs()]

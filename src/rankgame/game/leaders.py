@@ -1,0 +1,41 @@
+"""Who leads the Stackelberg game (Sec. 4.3, App. B.2): which agent data the reward sees, and how long it trains.
+
+* PAL (policy as leader): the reward is fit *to convergence* on the current iteration's agent data
+  only, judged by a shuffled holdout (Alg. 2).
+* RAL (reward as leader): the reward is fit on *all* agent data so far, with ``|D| / batch`` gradient
+  steps per iteration, ``|D|`` being the number of agent states collected so far (Alg. 3).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from rankgame.reward.player import RewardPlayer, RewardState
+from rankgame.reward.ranking_data import RankingData
+
+
+def add_agent_data(
+    leader: str, data: RankingData, trajectories: Sequence[np.ndarray], rng: np.random.Generator
+) -> None:
+    """PAL discards older agent data; RAL aggregates it."""
+    if leader == "pal":
+        data.clear()
+    data.add(trajectories, rng)
+
+
+def fit_reward(
+    leader: str, player: RewardPlayer, state: RewardState, data: RankingData, rng: np.random.Generator
+) -> tuple[RewardState, dict[str, float]]:
+    """One reward-player turn with the leader's budget."""
+    if leader == "pal":
+        return player.fit_until_converged(state, data, rng)
+    n_updates = max(1, math.ceil(data.n_trajectories * data.horizon / player.config.batch_size))
+    state, train_loss = player.fit_steps(state, data, n_updates, rng)
+    return state, {
+        "reward/train_loss": train_loss,
+        "reward/holdout_loss": player.holdout_loss(state.params, data),
+        "reward/epochs": float("nan"),
+    }

@@ -1,0 +1,400 @@
+"""The ranking game's training loop (Alg. 1-3): one loop for every method.
+
+Each iteration the policy player collects ``n_pol`` environment steps while SAC takes one gradient
+step per environment step on batches relabelled by the current reward (data sharing: the same
+transitions feed SAC and the ranking data). The episodes finished in the iteration, padded with
+absorbing states to the horizon, become agent data of the ranking dataset; the leader decides what
+the reward player keeps and how long it trains.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import json
+import shlex
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import jax
+import numpy as np
+from tqdm import tqdm
+
+from rankgame.atomic import atomic_write_bytes
+from rankgame.checkpoint import flatten_tree, load_checkpoint, save_checkpoint, unflatten_tree
+from rankgame.data.experts import normalized_score, shipped_expert_path
+from rankgame.data.trajectories import TrajectoryFile, load_trajectories
+from rankgame.envs.make import env_spec, make_env
+from rankgame.envs.rollout import episode_returns, random_policy, to_normalized_action
+from rankgame.errors import RankGameError
+from rankgame.game.leaders import add_agent_data, fit_reward
+from rankgame.game.methods import METHODS
+from rankgame.logging import RunLogger
+from rankgame.policy.io import save_policy
+from rankgame.policy.learner import SACLearner
+from rankgame.policy.sac import SACConfig
+from rankgame.reward.features import trajectory_features
+from rankgame.reward.nets import RewardInput, feature_dim
+from rankgame.reward.player import RewardConfig, RewardPlayer
+from rankgame.reward.ranking_data import RankingData
+from rankgame.reward.targets import Schedule, lambda_grid, target_schedule
+
+EVAL_SEED_OFFSET = 10_000
+CHECKPOINT_NAME = "checkpoint.npz"
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Options of ``rankgame train``."""
+
+    env: str = "Hopper-v5"
+    """Gymnasium id of the task."""
+    method: Literal[
+        "rank-pal-auto", "rank-ral-auto", "rank-pal-vanilla", "rank-ral-vanilla", "imit-pal", "imit-ral"
+    ] = "rank-pal-auto"
+    """Ranking source x loss x leader (see rankgame.game.methods)."""
+    steps: int = 300_000
+    """Environment steps of training."""
+    seed: int = 0
+    """Seed of everything random in the run."""
+    out: Path = Path("runs/train")
+    """Output folder: metrics.csv, tb/, checkpoint.npz, policy.msgpack."""
+    expert: Path | None = None
+    """Expert trajectory file (default: the shipped data for ENV)."""
+    expert_trajectories: int = 1
+    """How many expert trajectories to imitate (the first ones of the file)."""
+    setting: Literal["lfo", "lfd"] = "lfo"
+    """Learn from observations only (lfo) or from observations and actions (lfd)."""
+    reward_input: Literal["default", "s", "ss", "sa"] = "default"
+    """Reward inputs: s, (s, s') or (s, a); default: s for lfo, sa for lfd."""
+    k: float = 10.0
+    """Performance gap k: expert inputs are regressed to agent_target + k."""
+    agent_target: float = 0.0
+    """Regression target of agent inputs (the paper's 0)."""
+    schedule: Schedule = "exp"
+    """Targets of the auto mixtures: linear or exp."""
+    beta: float = -1.0
+    """Temperature of the exp schedule (the paper uses -1; -2 for Ant)."""
+    interpolations: int = 4
+    """Interior mixtures between agent and expert (auto rankings): 4 gives lambda = 0, 0.2, ..., 1."""
+    policy_updates: int | None = None
+    """Environment steps (and SAC updates) per game iteration, n_pol; default: the horizon H."""
+    eval_every: int = 10_000
+    """Environment steps between evaluations of the deterministic policy on the true reward."""
+    eval_episodes: int = 5
+    """Episodes per evaluation."""
+    checkpoint_every: int = 20_000
+    """Environment steps between checkpoints (rounded to whole iterations)."""
+    resume: bool = False
+    """Continue the run in OUT from its last checkpoint."""
+    tensorboard: bool = True
+    """Also write TensorBoard event files to OUT/tb."""
+    progress: bool = True
+    """Show a progress bar."""
+    sac: SACConfig = field(default_factory=SACConfig)
+    reward: RewardConfig = field(default_factory=RewardConfig)
+
+    @property
+    def resolved_reward_input(self) -> RewardInput:
+        if self.reward_input != "default":
+            return self.reward_input
+        return "s" if self.setting == "lfo" else "sa"
+
+    def validate(self) -> None:
+        """Raise :class:`RankGameError` with a one-line reason for settings that make no sense."""
+        if self.method not in METHODS:
+            raise RankGameError(f"unknown method {self.method!r}; choose from {', '.join(METHODS)}")
+        positive = {
+            "--steps": self.steps,
+            "--eval-every": self.eval_every,
+            "--eval-episodes": self.eval_episodes,
+            "--expert-trajectories": self.expert_trajectories,
+            "--checkpoint-every": self.checkpoint_every,
+        }
+        for name, value in positive.items():
+            if value <= 0:
+                raise RankGameError(f"{name} must be positive (got {value})")
+        if self.policy_updates is not None and self.policy_updates <= 0:
+            raise RankGameError("--policy-updates must be positive")
+        if self.k <= 0:
+            raise RankGameError("--k must be positive")
+        if self.interpolations < 0:
+            raise RankGameError("--interpolations must be >= 0")
+        if self.setting == "lfo" and self.resolved_reward_input == "sa":
+            raise RankGameError("--reward-input sa needs expert actions: use --setting lfd")
+        if not np.isfinite([self.k, self.agent_target, self.beta]).all():
+            raise RankGameError("--k, --agent-target and --beta must be finite")
+        try:
+            self.sac.validate()
+            self.reward.validate()
+        except ValueError as exc:
+            raise RankGameError(f"bad setting: {exc}") from None
+        if self.agent_target + self.k > self.reward.r_max or self.agent_target < -self.reward.r_max:
+            raise RankGameError(
+                f"targets [{self.agent_target}, {self.agent_target + self.k}] exceed the reward bound "
+                f"[-{self.reward.r_max}, {self.reward.r_max}] (--reward.r-max)"
+            )
+
+
+LOG_COLUMNS = (
+    "env_steps",
+    "wall_s",
+    "steps_per_s",
+    "eval_return",
+    "normalized_score",
+    "reward/train_loss",
+    "reward/holdout_loss",
+    "reward/agent",
+    "reward/expert",
+    "losses/critic",
+    "losses/actor",
+    "losses/alpha",
+    "losses/reward",
+)
+
+
+class _Episode:
+    """Observations and normalized actions of the episode being played."""
+
+    def __init__(self) -> None:
+        self.obs: list[np.ndarray] = []
+        self.acts: list[np.ndarray] = []
+
+
+def load_expert(cfg: TrainConfig) -> TrajectoryFile:
+    """The expert data to imitate: ``--expert FILE`` or the shipped file of the task."""
+    path = cfg.expert if cfg.expert is not None else shipped_expert_path(cfg.env)
+    data = load_trajectories(path, env_id=cfg.env)
+    if len(data.trajectories) < cfg.expert_trajectories:
+        raise RankGameError(
+            f"{path} holds {len(data.trajectories)} trajectories; "
+            f"--expert-trajectories asks for {cfg.expert_trajectories}"
+        )
+    return data
+
+
+class RankingGame:
+    """All state of one training run, built from a :class:`TrainConfig`."""
+
+    def __init__(self, cfg: TrainConfig) -> None:
+        cfg.validate()
+        self.cfg = cfg
+        self.method = METHODS[cfg.method]
+        self.env = make_env(cfg.env)
+        self.eval_env = make_env(cfg.env)
+        expert = load_expert(cfg)
+        spec = env_spec(self.env)
+        if (expert.obs_dim, expert.act_dim) != (spec.obs_dim, spec.act_dim):
+            raise RankGameError(
+                f"expert data has obs_dim={expert.obs_dim}, act_dim={expert.act_dim}; {cfg.env} has "
+                f"obs_dim={spec.obs_dim}, act_dim={spec.act_dim}"
+            )
+        self.horizon = spec.max_episode_steps or max(len(t) for t in expert.trajectories)
+        self.n_pol = cfg.policy_updates or self.horizon
+        reward_input = cfg.resolved_reward_input
+        self.player = RewardPlayer(
+            feature_dim(spec.obs_dim, spec.act_dim, reward_input), reward_input, self.method.loss, cfg.reward
+        )
+        # SAC relabels its batches with the reward player's current reward.
+        self.learner = SACLearner(
+            self.env, cfg.sac, cfg.seed, reward_fn=self.player.reward_fn, store_env_reward=False, absorbing=True
+        )
+        self.reward_state = self.player.init(jax.random.fold_in(jax.random.key(cfg.seed), 1))
+        self.rng = np.random.default_rng([cfg.seed, 1])
+
+        used = expert.trajectories[: cfg.expert_trajectories]
+        expert_inputs = np.stack(
+            [
+                self._features(t.obs, to_normalized_action(t.acts, spec.act_low, spec.act_high), bool(t.terminated[-1]))
+                for t in used
+            ]
+        )
+        lambdas = lambda_grid(cfg.interpolations) if self.method.rankings == "auto" else np.array([0.0, 1.0])
+        targets = target_schedule(lambdas, cfg.agent_target, cfg.agent_target + cfg.k, cfg.schedule, cfg.beta)
+        self.data = RankingData(expert_inputs, lambdas, targets, cfg.reward.holdout_fraction)
+        self.expert_return = float(expert.returns.mean())
+        self.random_return = float(expert.metadata.get("random_return_mean", np.nan))
+        if not np.isfinite(self.random_return):
+            env = make_env(cfg.env)
+            self.random_return = float(episode_returns(env, random_policy(env, cfg.seed), 20, cfg.seed).mean())
+        self.episode = _Episode()
+        self.finished: list[np.ndarray] = []
+        self.reward_metrics: dict[str, float] = {}
+        self.sac_metrics: dict[str, float] = {}
+
+    def _features(self, obs: np.ndarray, acts_norm: np.ndarray, terminated: bool) -> np.ndarray:
+        return trajectory_features(obs, acts_norm, terminated, self.horizon, self.cfg.resolved_reward_input)
+
+    def env_step(self) -> None:
+        """One environment step and the SAC updates due after it."""
+        learner = self.learner
+        result = learner.env_step()
+        if not self.episode.obs:
+            self.episode.obs.append(result.obs)
+        self.episode.obs.append(result.next_obs)
+        self.episode.acts.append(learner.normalize_actions(result.act))
+        if result.terminated or result.truncated:
+            if result.terminated or len(self.episode.acts) >= self.horizon:
+                obs, acts = np.asarray(self.episode.obs), np.asarray(self.episode.acts, np.float32)
+                self.finished.append(self._features(obs, acts, result.terminated))
+            self.episode = _Episode()
+        self.sac_metrics = learner.maybe_update(self.reward_state.params) or self.sac_metrics
+
+    def reward_turn(self) -> None:
+        """The reward player's move at the end of an iteration (nothing if no episode finished)."""
+        if not self.finished:
+            return
+        add_agent_data(self.method.leader, self.data, self.finished, self.rng)
+        self.finished = []
+        self.reward_state, self.reward_metrics = fit_reward(
+            self.method.leader, self.player, self.reward_state, self.data, self.rng
+        )
+        params = self.reward_state.params
+        agent = self.data.agent[-1]
+        self.reward_metrics["reward/agent"] = float(self.player.reward(params, agent).mean())
+        self.reward_metrics["reward/expert"] = float(self.player.reward(params, self.data.expert[0]).mean())
+
+    def evaluate(self) -> tuple[float, float]:
+        """Mean true return of the deterministic policy and its normalized score."""
+        returns = episode_returns(
+            self.eval_env, self.learner.policy(), self.cfg.eval_episodes, self.cfg.seed + EVAL_SEED_OFFSET
+        )
+        mean = float(returns.mean())
+        return mean, float(normalized_score(mean, self.expert_return, self.random_return))
+
+    # --- checkpoints -------------------------------------------------------------------------
+    def save(self, path: Path, extra: dict[str, Any]) -> None:
+        learner = self.learner
+        metadata = {
+            **extra,
+            "config": json.loads(json.dumps(dataclasses.asdict(self.cfg), default=str)),
+            "env_steps": learner.env_steps,
+            "updates_owed": learner._updates_owed,
+            "learner_rng": learner.rng.bit_generator.state,
+            "game_rng": self.rng.bit_generator.state,
+            "reward_metrics": self.reward_metrics,
+        }
+        arrays = {
+            **flatten_tree("sac", learner.state),
+            **flatten_tree("reward", self.reward_state),
+            **learner.buffer.state_dict(),
+            **self.data.state_dict(),
+        }
+        save_checkpoint(path, metadata, arrays)
+
+    def restore(self, path: Path) -> dict[str, Any]:
+        metadata, arrays = load_checkpoint(path)
+        saved_cfg = metadata["config"]
+        for key in ("env", "method", "setting", "seed"):
+            if str(saved_cfg[key]) != str(getattr(self.cfg, key)):
+                raise RankGameError(f"--{key} {getattr(self.cfg, key)} differs from the checkpoint's {saved_cfg[key]}")
+        learner = self.learner
+        learner.state = unflatten_tree("sac", arrays, learner.state)
+        self.reward_state = unflatten_tree("reward", arrays, self.reward_state)
+        learner.buffer.load_state_dict(arrays)
+        self.data.load_state_dict(arrays)
+        learner.env_steps = int(metadata["env_steps"])
+        learner._updates_owed = float(metadata["updates_owed"])
+        learner.rng.bit_generator.state = metadata["learner_rng"]
+        self.rng.bit_generator.state = metadata["game_rng"]
+        self.reward_metrics = metadata["reward_metrics"]
+        # The interrupted episode is lost: the environment starts a new one.
+        learner.reset_episode(seed=self.cfg.seed + learner.env_steps)
+        return metadata
+
+
+def _trim_metrics(out: Path, last_step: int) -> None:
+    """Keep only metrics rows up to the checkpoint, so a resumed run repeats and misses no row."""
+    path = out / "metrics.csv"
+    if not path.exists():
+        return
+    with path.open(newline="") as handle:
+        rows = list(csv.reader(handle))
+    if not rows:
+        return
+    kept = [rows[0]] + [row for row in rows[1:] if row and row[0].isdigit() and int(row[0]) <= last_step]
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\n").writerows(kept)
+    atomic_write_bytes(path, buffer.getvalue().encode())
+
+
+def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
+    """Run (or resume) the ranking game and return a summary of the final evaluation."""
+    game = RankingGame(cfg)
+    out = Path(cfg.out)
+    ckpt = out / CHECKPOINT_NAME
+    elapsed = 0.0
+    if cfg.resume:
+        meta = game.restore(ckpt)
+        elapsed = float(meta["wall_s"])
+        _trim_metrics(out, game.learner.env_steps)
+    elif (out / "metrics.csv").exists() or ckpt.exists():
+        raise RankGameError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    command = command or shlex.join(sys.argv)
+    (out / "config.json").write_text(
+        json.dumps({"command": command, **json.loads(json.dumps(dataclasses.asdict(cfg), default=str))}, indent=2)
+    )
+    logger = RunLogger(
+        out, LOG_COLUMNS, tensorboard=cfg.tensorboard, purge_step=game.learner.env_steps if cfg.resume else None
+    )
+    start_step = game.learner.env_steps
+    start = time.perf_counter() - elapsed
+    last_eval: tuple[float, float] = (float("nan"), float("nan"))
+    bar = tqdm(
+        total=cfg.steps,
+        initial=start_step,
+        disable=not cfg.progress,
+        unit="step",
+        dynamic_ncols=True,
+        desc=f"{cfg.method} {cfg.env}",
+    )
+    spec = game.learner.spec
+    try:
+        for step in range(start_step + 1, cfg.steps + 1):
+            game.env_step()
+            if step % game.n_pol == 0:
+                game.reward_turn()
+            if step % cfg.eval_every == 0 or step == cfg.steps:
+                last_eval = game.evaluate()
+                wall = time.perf_counter() - start
+                logger.log(
+                    {
+                        "env_steps": step,
+                        "wall_s": wall,
+                        "steps_per_s": (step - start_step) / max(time.perf_counter() - start - elapsed, 1e-9),
+                        "eval_return": last_eval[0],
+                        "normalized_score": last_eval[1],
+                        **game.reward_metrics,
+                        **game.sac_metrics,
+                    }
+                )
+                bar.set_postfix(score=f"{last_eval[1]:.1f}", ret=f"{last_eval[0]:.0f}")
+            if step % game.n_pol == 0 and (step % cfg.checkpoint_every < game.n_pol or step == cfg.steps):
+                game.save(ckpt, {"wall_s": time.perf_counter() - start})
+            bar.update(1)
+    finally:
+        bar.close()
+        logger.close()
+    params = jax.device_get(game.learner.state.actor_params)
+    save_policy(
+        out / "policy.msgpack",
+        game.learner.sac,
+        params,
+        cfg.env,
+        spec.act_low,
+        spec.act_high,
+        command=command,
+        absorbing_flag=True,
+    )
+    return {
+        "env": cfg.env,
+        "method": cfg.method,
+        "steps": cfg.steps,
+        "eval_return": last_eval[0],
+        "normalized_score": last_eval[1],
+    }

@@ -1,0 +1,44 @@
+"""A method is a combination of three named pieces (Sec. 4): ranking source x ranking loss x leader.
+
+=================  =========  ==========  ======
+method             rankings   loss        leader
+=================  =========  ==========  ======
+rank-pal-auto      auto       regression  pal
+rank-ral-auto      auto       regression  ral
+rank-pal-vanilla   vanilla    regression  pal
+rank-ral-vanilla   vanilla    regression  ral
+imit-pal           vanilla    supremum    pal
+imit-ral           vanilla    supremum    ral
+=================  =========  ==========  ======
+
+Adding a method means adding a row to :data:`METHODS`, not another training loop.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from rankgame.reward.player import RankingLoss
+
+RankingSource = Literal["vanilla", "auto"]
+Leader = Literal["pal", "ral"]
+
+
+@dataclass(frozen=True)
+class Method:
+    """Where rankings come from, which loss fits them, and which player leads."""
+
+    rankings: RankingSource
+    loss: RankingLoss
+    leader: Leader
+
+
+METHODS: dict[str, Method] = {
+    "rank-pal-auto": Method("auto", "regression", "pal"),
+    "rank-ral-auto": Method("auto", "regression", "ral"),
+    "rank-pal-vanilla": Method("vanilla", "regression", "pal"),
+    "rank-ral-vanilla": Method("vanilla", "regression", "ral"),
+    "imit-pal": Method("vanilla", "supremum", "pal"),
+    "imit-ral": Method("vanilla", "supremum", "ral"),
+}

@@ -1,0 +1,184 @@
+"""The reward player: fits the reward network to the ranking dataset with a budget or early stopping.
+
+Gradient steps are fused ``chunk`` at a time into one jitted ``lax.scan`` over pre-sampled batches.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import flax.struct
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from rankgame.policy.sac import Batch
+from rankgame.reward.losses import regression_ranking_loss, supremum_loss
+from rankgame.reward.nets import Bound, RewardInput, RewardNet, batch_features, bound_reward
+from rankgame.reward.ranking_data import RankingData
+
+RankingLoss = Literal["regression", "supremum"]
+
+
+@dataclass(frozen=True)
+class RewardConfig:
+    """Reward network and optimizer (paper, App. C and Table 4)."""
+
+    hidden_sizes: tuple[int, ...] = (64, 64)
+    """Hidden layer widths of the reward MLP (ReLU)."""
+    lr: float = 1e-3
+    """Adam learning rate."""
+    weight_decay: float = 1e-4
+    """L2 weight decay coefficient (added to the gradient before Adam)."""
+    batch_size: int = 1024
+    """Ranking inputs per gradient step."""
+    r_max: float = 10.0
+    """Rewards given to the policy are bounded to [-r_max, r_max]."""
+    holdout_fraction: float = 0.1
+    """Share of agent rows held out to decide when fitting has converged (PAL)."""
+    patience: int = 3
+    """Epochs without holdout improvement before fitting stops (PAL)."""
+    max_epochs: int = 50
+    """Upper bound on epochs per fit (PAL)."""
+    chunk: int = 16
+    """Gradient steps fused into one jitted call."""
+
+    def validate(self) -> None:
+        checks = [
+            (self.lr > 0 and self.weight_decay >= 0, "reward lr must be positive and weight_decay >= 0"),
+            (self.batch_size > 0 and self.chunk > 0, "reward batch_size and chunk must be positive"),
+            (self.r_max > 0, "r_max must be positive"),
+            (0.0 <= self.holdout_fraction < 1.0, "holdout_fraction must lie in [0, 1)"),
+            (self.patience > 0 and self.max_epochs > 0, "patience and max_epochs must be positive"),
+        ]
+        for ok, message in checks:
+            if not ok:
+                raise ValueError(message)
+
+
+@flax.struct.dataclass
+class RewardState:
+    params: Any
+    opt_state: Any
+
+
+class RewardPlayer:
+    """Reward network, its ranking loss and its optimizer.
+
+    Args:
+        feature_dim: size of one reward input (see :func:`rankgame.reward.nets.feature_dim`).
+        reward_input: ``s``, ``ss`` or ``sa``; decides how SAC batches become reward inputs.
+        loss: ``regression`` (L_k / SL_k) or ``supremum`` (IMIT ablation).
+    """
+
+    def __init__(self, feature_dim: int, reward_input: RewardInput, loss: RankingLoss, config: RewardConfig) -> None:
+        config.validate()
+        self.config = config
+        self.feature_dim = feature_dim
+        self.reward_input = reward_input
+        self.loss_kind = loss
+        # Regression keeps the paper's hard clip for the policy (its loss uses the raw output, so no
+        # gradient dies at the bound); the supremum loss needs a bound inside the loss, so it uses the
+        # smooth tanh bound, and the policy sees that same bounded reward.
+        self.bound: Bound = "clip" if loss == "regression" else "tanh"
+        self.net = RewardNet(config.hidden_sizes)
+        self.tx = optax.chain(optax.add_decayed_weights(config.weight_decay), optax.adam(config.lr))
+        self._update = jax.jit(self._update_many, donate_argnums=(0,))
+        self._eval = jax.jit(self._loss_value)
+
+    def init(self, key: jax.Array) -> RewardState:
+        params = self.net.init(key, jnp.zeros((1, self.feature_dim), jnp.float32))
+        return RewardState(params=params, opt_state=self.tx.init(params))
+
+    def reward(self, params: Any, features: jax.Array) -> jax.Array:
+        """Bounded rewards ``(B,)`` for reward inputs ``(B, d)``."""
+        return bound_reward(self.net.apply(params, features), self.config.r_max, self.bound)
+
+    def reward_fn(self, params: Any, batch: Batch) -> jax.Array:
+        """The reward function handed to SAC: relabels a batch ``(B,)`` with the current reward."""
+        return self.reward(params, batch_features(batch, self.reward_input))
+
+    def _loss(self, params: Any, inputs: jax.Array, targets: jax.Array, is_expert: jax.Array, weights: jax.Array):
+        raw = self.net.apply(params, inputs)
+        if self.loss_kind == "regression":
+            return regression_ranking_loss(raw, targets, weights)
+        return supremum_loss(bound_reward(raw, self.config.r_max, self.bound) * weights, is_expert * weights)
+
+    def _loss_value(self, params: Any, inputs: jax.Array, targets: jax.Array, is_expert: jax.Array, weights: jax.Array):
+        return self._loss(params, inputs, targets, is_expert, weights)[0]
+
+    def _update_many(self, state: RewardState, inputs: jax.Array, targets: jax.Array, is_expert: jax.Array):
+        """Gradient steps over batches ``inputs (n, B, d)``, ``targets (n, B)``, ``is_expert (n, B)``."""
+
+        def step(carry: RewardState, batch: tuple[jax.Array, jax.Array, jax.Array]):
+            x, y, e = batch
+            (loss, _), grads = jax.value_and_grad(self._loss, has_aux=True)(carry.params, x, y, e, jnp.ones_like(y))
+            updates, opt_state = self.tx.update(grads, carry.opt_state, carry.params)
+            return RewardState(optax.apply_updates(carry.params, updates), opt_state), loss
+
+        state, losses = jax.lax.scan(step, state, (inputs, targets, is_expert))
+        return state, jnp.mean(losses)
+
+    def fit_steps(
+        self, state: RewardState, data: RankingData, n_updates: int, rng: np.random.Generator
+    ) -> tuple[RewardState, float]:
+        """About ``n_updates`` gradient steps (rounded up to whole chunks); returns the mean training loss."""
+        losses = []
+        for _ in range(max(1, math.ceil(n_updates / self.config.chunk))):
+            inputs, targets, is_expert = data.sample(rng, self.config.chunk, self.config.batch_size)
+            state, loss = self._update(state, inputs, targets, is_expert)
+            losses.append(loss)
+        return state, float(np.mean(jax.device_get(losses)))
+
+    def holdout_loss(self, params: Any, data: RankingData) -> float:
+        """Loss on every holdout input (NaN when there is no holdout)."""
+        inputs, targets, is_expert = data.holdout()
+        if len(inputs) == 0:
+            return float("nan")
+        # Pad to a power of two so that a growing holdout compiles only a few shapes.
+        size = 1 << (len(inputs) - 1).bit_length()
+        pad = size - len(inputs)
+        weights = np.concatenate([np.ones(len(inputs), np.float32), np.zeros(pad, np.float32)])
+        inputs = np.concatenate([inputs, np.zeros((pad, inputs.shape[1]), np.float32)])
+        targets = np.concatenate([targets, np.zeros(pad, np.float32)])
+        is_expert = np.concatenate([is_expert, np.zeros(pad, np.float32)])
+        return float(self._eval(params, inputs, targets, is_expert, weights))
+
+    def fit_until_converged(
+        self, state: RewardState, data: RankingData, rng: np.random.Generator
+    ) -> tuple[RewardState, dict[str, float]]:
+        """Fit epoch by epoch until the holdout loss stops improving; keep the best parameters.
+
+        One epoch is as many gradient steps as it takes to draw each training input (every mixture of
+        every training row) once on average.
+        """
+        cfg = self.config
+        per_epoch = max(1, math.ceil(len(data.train_rows) * len(data.lambdas) / cfg.batch_size))
+        best_loss, best_params, stale, epochs, train_loss = (
+            self.holdout_loss(state.params, data),
+            None,
+            0,
+            0,
+            float("nan"),
+        )
+        if not np.isfinite(best_loss):  # no holdout: a single epoch
+            state, train_loss = self.fit_steps(state, data, per_epoch, rng)
+            return state, {"reward/train_loss": train_loss, "reward/holdout_loss": float("nan"), "reward/epochs": 1.0}
+        best_params = jax.tree.map(jnp.copy, state.params)  # the update donates state's buffers
+        while epochs < cfg.max_epochs and stale < cfg.patience:
+            state, train_loss = self.fit_steps(state, data, per_epoch, rng)
+            epochs += 1
+            loss = self.holdout_loss(state.params, data)
+            if loss < best_loss:
+                best_loss, best_params, stale = loss, jax.tree.map(jnp.copy, state.params), 0
+            else:
+                stale += 1
+        state = RewardState(params=best_params, opt_state=state.opt_state)
+        return state, {
+            "reward/train_loss": train_loss,
+            "reward/holdout_loss": best_loss,
+            "reward/epochs": float(epochs),
+        }

@@ -1,0 +1,110 @@
+"""The ranking dataset: agent and expert trajectories and the (auto) mixtures between them.
+
+Rows are time steps ``(i, t)`` of agent trajectories. A sampled training input is the time-aligned
+mixture (App. B.1) ``x = a_i[t] + lambda_p (e_j[t] - a_i[t])`` of agent trajectory ``i`` and a
+uniformly drawn expert trajectory ``j``, at a uniformly drawn grid point ``p``; its regression
+target is ``k_p``. Sampling ``p`` uniformly weights every behavior in the ranking chain equally,
+as in SL_k (Eq. 8). The vanilla ranking is the grid ``{0, 1}``: agent vs expert.
+
+Mixtures are formed when sampled, so memory grows with the agent data only, not with the grid.
+A random (shuffled) ``holdout_fraction`` of rows, drawn as rows arrive, is kept for early stopping.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+
+class RankingData:
+    """Agent trajectories ranked below expert trajectories, with mixture grid and targets.
+
+    Args:
+        expert: ``(M, H, d)`` expert reward inputs.
+        lambdas: ``(G,)`` mixture weights, ``0`` (agent) first and ``1`` (expert) last.
+        targets: ``(G,)`` regression target of each mixture (non-decreasing).
+        holdout_fraction: share of agent rows kept out of training.
+    """
+
+    def __init__(self, expert: np.ndarray, lambdas: np.ndarray, targets: np.ndarray, holdout_fraction: float) -> None:
+        if expert.ndim != 3 or len(expert) == 0:
+            raise ValueError(f"expert inputs must have shape (M, H, d) with M >= 1, got {expert.shape}")
+        if lambdas.shape != targets.shape or lambdas[0] != 0.0 or lambdas[-1] != 1.0:
+            raise ValueError("the mixture grid must run from 0 (agent) to 1 (expert) with one target per point")
+        if np.any(np.diff(targets) < 0):
+            raise ValueError("ranking targets must be non-decreasing from agent to expert")
+        if not 0.0 <= holdout_fraction < 1.0:
+            raise ValueError("holdout_fraction must lie in [0, 1)")
+        self.expert = expert.astype(np.float32)
+        self.lambdas = lambdas.astype(np.float32)
+        self.targets = targets.astype(np.float32)
+        self.holdout_fraction = holdout_fraction
+        self.horizon, self.dim = expert.shape[1], expert.shape[2]
+        self.agent = np.zeros((0, self.horizon, self.dim), np.float32)
+        self.train_rows = np.zeros((0, 2), np.int64)
+        self.holdout_rows = np.zeros((0, 3), np.int64)  # (i, t, expert j), fixed for a stable holdout
+
+    @property
+    def n_trajectories(self) -> int:
+        return len(self.agent)
+
+    def clear(self) -> None:
+        """Forget all agent data (PAL keeps only the current iteration's)."""
+        self.agent = self.agent[:0]
+        self.train_rows = self.train_rows[:0]
+        self.holdout_rows = self.holdout_rows[:0]
+
+    def add(self, trajectories: Sequence[np.ndarray], rng: np.random.Generator) -> None:
+        """Append agent trajectories, each ``(H, d)``, assigning their rows to train or holdout at random."""
+        if not trajectories:
+            return
+        new = np.stack(trajectories).astype(np.float32)
+        if new.shape[1:] != (self.horizon, self.dim):
+            raise ValueError(f"agent inputs have shape {new.shape[1:]}, expected {(self.horizon, self.dim)}")
+        first = len(self.agent)
+        self.agent = np.concatenate([self.agent, new])
+        idx, t = np.meshgrid(np.arange(first, len(self.agent)), np.arange(self.horizon), indexing="ij")
+        rows = np.stack([idx.ravel(), t.ravel()], axis=1)
+        held = rng.uniform(size=len(rows)) < self.holdout_fraction
+        experts = rng.integers(0, len(self.expert), size=int(held.sum()))
+        self.train_rows = np.concatenate([self.train_rows, rows[~held]])
+        self.holdout_rows = np.concatenate([self.holdout_rows, np.column_stack([rows[held], experts])])
+
+    def _mix(self, agent_idx: np.ndarray, t: np.ndarray, expert_idx: np.ndarray, group: np.ndarray) -> np.ndarray:
+        a = self.agent[agent_idx, t]
+        e = self.expert[expert_idx, t]
+        return a + self.lambdas[group][..., None] * (e - a)
+
+    def sample(
+        self, rng: np.random.Generator, n_batches: int, batch_size: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Training batches: inputs ``(n, B, d)``, targets ``(n, B)``, is-expert flags ``(n, B)``."""
+        if len(self.train_rows) == 0:
+            raise ValueError("the ranking dataset has no agent data yet")
+        shape = (n_batches, batch_size)
+        rows = self.train_rows[rng.integers(0, len(self.train_rows), size=shape)]
+        experts = rng.integers(0, len(self.expert), size=shape)
+        group = rng.integers(0, len(self.lambdas), size=shape)
+        inputs = self._mix(rows[..., 0], rows[..., 1], experts, group)
+        return inputs, self.targets[group], (group == len(self.lambdas) - 1).astype(np.float32)
+
+    def holdout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every mixture of every holdout row: inputs ``(R G, d)``, targets ``(R G,)``, is-expert ``(R G,)``."""
+        n_groups = len(self.lambdas)
+        rows = np.repeat(self.holdout_rows, n_groups, axis=0)
+        group = np.tile(np.arange(n_groups), len(self.holdout_rows))
+        inputs = self._mix(rows[:, 0], rows[:, 1], rows[:, 2], group)
+        return inputs, self.targets[group], (group == n_groups - 1).astype(np.float32)
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        return {
+            "ranking/agent": self.agent,
+            "ranking/train_rows": self.train_rows,
+            "ranking/holdout_rows": self.holdout_rows,
+        }
+
+    def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
+        self.agent = state["ranking/agent"]
+        self.train_rows = state["ranking/train_rows"]
+        self.holdout_rows = state["ranking/holdout_rows"]

@@ -1,0 +1,122 @@
+"""Command line: help, a tiny end-to-end expert run, listings, and one-line errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from rankgame.cli import main
+from rankgame.data.trajectories import load_trajectories
+from rankgame.policy.io import load_policy
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    """Run ``rankgame`` as a user would, in a fresh process."""
+    return subprocess.run(
+        [sys.executable, "-m", "rankgame.cli", *args], capture_output=True, text=True, timeout=300, check=False
+    )
+
+
+def assert_one_line_error(result: subprocess.CompletedProcess[str], fragment: str) -> None:
+    assert result.returncode != 0
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("rankgame") and fragment in lines[0], lines[0]
+    assert "Traceback" not in result.stderr
+
+
+def test_help_lists_commands_and_options(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--help"]) == 0
+    assert "expert" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exit_info:
+        main(["expert", "--preset", "paper", "--help"])
+    assert exit_info.value.code == 0
+    out = capsys.readouterr().out
+    assert "--sac.batch-size" in out and "(default: 100)" in out and "Environment steps of SAC training" in out
+
+
+def test_expert_end_to_end_on_the_toy_task(tmp_path: Path) -> None:
+    out = tmp_path / "expert"
+    result = run_cli(
+        "expert",
+        "--env",
+        "rankgame/PointGoal-v0",
+        "--steps",
+        "600",
+        "--eval-every",
+        "300",
+        "--out",
+        str(out),
+        "--trajectories",
+        "3",
+        "--random-episodes",
+        "4",
+        "--sac.hidden-sizes",
+        "16",
+        "16",
+        "--sac.start-steps",
+        "200",
+        "--sac.update-after",
+        "200",
+        "--no-progress",
+    )
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    data = load_trajectories(out / "trajectories.npz", env_id="rankgame/PointGoal-v0")
+    assert len(data.trajectories) == 3 and summary["return_mean"] == pytest.approx(data.returns.mean(), rel=1e-5)
+    assert data.metadata["command"].startswith("rankgame expert --env rankgame/PointGoal-v0")
+    assert data.metadata["train_seed"] == 0
+    assert load_policy(out / "best_policy.msgpack").env_id == "rankgame/PointGoal-v0"
+    rows = (out / "metrics.csv").read_text().splitlines()
+    assert rows[0].startswith("env_steps,wall_s") and [r.split(",")[0] for r in rows[1:]] == ["300", "600"]
+    assert any((out / "tb").iterdir())
+
+    again = run_cli(
+        "record",
+        "--policy",
+        str(out / "best_policy.msgpack"),
+        "--out",
+        str(tmp_path / "r.npz"),
+        "--episodes",
+        "2",
+        "--random-episodes",
+        "2",
+    )
+    assert again.returncode == 0, again.stderr
+    assert len(load_trajectories(tmp_path / "r.npz").trajectories) == 2
+
+
+def test_experts_listing_as_json() -> None:
+    result = run_cli("experts", "--json")
+    assert result.returncode == 0, result.stderr
+    rows = json.loads(result.stdout)
+    assert rows and all(row["trajectories"] >= 10 and row["return_mean"] > row["random_return"] for row in rows)
+    table = run_cli("experts")
+    assert table.stdout.splitlines()[0].split()[:2] == ["env", "trajs"]
+
+
+@pytest.mark.parametrize(
+    ("args", "fragment"),
+    [
+        (["expert", "--env", "NoSuchEnv-v0", "--steps", "10"], "unknown environment id 'NoSuchEnv-v0'"),
+        (["expert", "--env", "CartPole-v1", "--steps", "10"], "Discrete action space"),
+        (["expert", "--steps", "ten"], "invalid int value"),
+        (["expert", "--steps", "-5"], "must be positive"),
+        (["expert", "--sac.gamma", "2"], "gamma must lie in [0, 1]"),
+        (["expert", "--preset", "fancy"], "unknown preset 'fancy'"),
+        (["fly"], "unknown command 'fly'"),
+        (["record", "--policy", "/nonexistent/p.msgpack"], "policy file not found"),
+    ],
+)
+def test_bad_input_gives_one_line_error(args: list[str], fragment: str) -> None:
+    assert_one_line_error(run_cli(*args), fragment)
+
+
+def test_corrupt_policy_file_gives_one_line_error(tmp_path: Path) -> None:
+    bad = tmp_path / "p.msgpack"
+    bad.write_bytes(b"\x93not msgpack at all")
+    assert_one_line_error(run_cli("record", "--policy", str(bad)), "unreadable or truncated policy file")

@@ -1,0 +1,54 @@
+"""Environment factory and rollouts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rankgame.envs.make import env_spec, make_env
+from rankgame.envs.rollout import rollout, to_env_action, to_normalized_action
+from rankgame.envs.toy import point_goal_expert
+from rankgame.errors import RankGameError
+
+
+@pytest.mark.parametrize(
+    ("env_id", "obs_dim", "act_dim"),
+    [
+        ("Hopper-v5", 11, 3),
+        ("HalfCheetah-v5", 17, 6),
+        ("Walker2d-v5", 17, 6),
+        ("Ant-v5", 105, 8),
+        ("Humanoid-v5", 348, 17),
+        ("Swimmer-v5", 8, 2),
+    ],
+)
+def test_locomotion_tasks(env_id: str, obs_dim: int, act_dim: int) -> None:
+    spec = env_spec(make_env(env_id))
+    assert (spec.obs_dim, spec.act_dim, spec.max_episode_steps) == (obs_dim, act_dim, 1000)
+
+
+def test_other_continuous_ids_work() -> None:
+    assert env_spec(make_env("Pendulum-v1")).act_dim == 1
+
+
+def test_unknown_and_discrete_envs_are_rejected() -> None:
+    with pytest.raises(RankGameError, match="unknown environment id 'Hoper-v5'"):
+        make_env("Hoper-v5")
+    with pytest.raises(RankGameError, match="Discrete action space"):
+        make_env("CartPole-v1")
+
+
+def test_action_scaling_round_trip() -> None:
+    low, high = np.array([-0.4, 0.0]), np.array([0.4, 2.0])
+    np.testing.assert_allclose(to_env_action(np.array([-1.0, 1.0]), low, high), [-0.4, 2.0])
+    acts = np.array([0.1, 1.5])
+    np.testing.assert_allclose(to_env_action(to_normalized_action(acts, low, high), low, high), acts)
+
+
+def test_rollout_records_whole_seeded_episodes() -> None:
+    env = make_env("rankgame/PointGoal-v0")
+    first = rollout(env, point_goal_expert, 2, seed=4)
+    again = rollout(env, point_goal_expert, 2, seed=4)
+    assert [len(t) for t in first] == [40, 40] and first[0].truncated[-1]
+    np.testing.assert_array_equal(first[1].obs, again[1].obs)
+    assert first[0].ret > -3.0
