@@ -20,3 +20,27 @@ def tiny_sac() -> SACConfig:
         update_every=40,
         buffer_size=10_000,
     )
+
+
+@pytest.fixture(scope="session")
+def toy_expert_file(tmp_path_factory: pytest.TempPathFactory):
+    """Ten episodes of the analytic PointGoal expert, with the random return in the metadata."""
+    from rankgame.data.trajectories import save_trajectories
+    from rankgame.envs.make import make_env
+    from rankgame.envs.rollout import episode_returns, random_policy, rollout
+    from rankgame.envs.toy import POINT_GOAL_ID, point_goal_expert
+
+    env = make_env(POINT_GOAL_ID)
+    random_return = float(episode_returns(env, random_policy(env, 0), 20, seed=0).mean())
+    path = tmp_path_factory.mktemp("toy") / "expert.npz"
+    return save_trajectories(
+        path, POINT_GOAL_ID, rollout(env, point_goal_expert, 10, seed=0), random_return_mean=random_return
+    )
+
+
+#: Command-line options of a small, fast ranking game on the toy task.
+TOY_TRAIN_ARGS = (
+    "--env", "rankgame/PointGoal-v0", "--sac.hidden-sizes", "64", "64", "--sac.batch-size", "64",
+    "--sac.start-steps", "400", "--sac.update-after", "400", "--sac.update-every", "40",
+    "--reward.batch-size", "256", "--no-progress", "--no-tensorboard",
+)

@@ -1,0 +1,150 @@
+"""Reward player: targets, losses (hand-computed), mixup, features, and the tabular closed form (Eq. 9)."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from rankgame.reward.features import trajectory_features
+from rankgame.reward.losses import regression_ranking_loss, supremum_loss, weighted_sum
+from rankgame.reward.nets import bound_reward
+from rankgame.reward.player import RewardConfig, RewardPlayer
+from rankgame.reward.ranking_data import RankingData
+from rankgame.reward.targets import lambda_grid, target_schedule
+
+
+def test_exp_schedule_matches_the_published_targets() -> None:
+    # exp with beta = -1 on the grid 0, 0.2, ..., 1 between -10 and 10 (the authors' code).
+    targets = target_schedule(lambda_grid(4), -10.0, 10.0, "exp", -1.0)
+    np.testing.assert_allclose(targets, [-10, -4.27, 0.43, 4.27, 7.42, 10], atol=0.01)
+
+
+def test_linear_schedule_and_limits() -> None:
+    np.testing.assert_allclose(target_schedule(np.array([0, 0.5, 1]), 0, 10, "linear"), [0, 5, 10])
+    np.testing.assert_allclose(target_schedule(np.array([0, 0.5, 1]), 0, 10, "exp", 0.0), [0, 5, 10])
+    targets = target_schedule(lambda_grid(3), 0, 10, "exp", 2.0)
+    assert np.all(np.diff(targets) > 0) and np.diff(targets)[0] < np.diff(targets)[-1]  # beta > 0: gaps grow
+    assert targets.dtype == np.float64  # targets stay floats, never truncated
+    with pytest.raises(ValueError, match="unknown target schedule"):
+        target_schedule(np.array([0.0, 1.0]), 0, 1, "cubic")  # type: ignore[arg-type]
+
+
+def test_regression_loss_hand_computed() -> None:
+    # L_k with k = 2: agent outputs (1, 0) -> target 0; expert outputs (2, 4) -> target 2.
+    raw = jnp.array([1.0, 0.0, 2.0, 4.0])
+    targets = jnp.array([0.0, 0.0, 2.0, 2.0])
+    loss, metrics = regression_ranking_loss(raw, targets)
+    assert float(loss) == pytest.approx((1 + 0 + 0 + 4) / 4)
+    weighted, _ = regression_ranking_loss(raw, targets, jnp.array([1.0, 1.0, 1.0, 0.0]))
+    assert float(weighted) == pytest.approx(1 / 3)
+
+
+def test_supremum_loss_hand_computed() -> None:
+    loss, metrics = supremum_loss(jnp.array([1.0, 3.0, 5.0, 9.0]), jnp.array([0.0, 0.0, 1.0, 1.0]))
+    assert float(metrics["gap"]) == pytest.approx(7.0 - 2.0)
+    assert float(loss) == pytest.approx(-5.0)
+
+
+def test_weighted_sum_of_losses() -> None:
+    total, metrics = weighted_sum([(0.3, (jnp.array(2.0), {})), (0.7, (jnp.array(4.0), {"mse": jnp.array(4.0)}))])
+    assert float(total) == pytest.approx(0.3 * 2 + 0.7 * 4)
+    assert float(metrics["term1/mse"]) == 4.0
+
+
+def test_bounds_keep_rewards_inside_and_tanh_keeps_gradients() -> None:
+    raw = jnp.array([-30.0, 0.5, 30.0])
+    np.testing.assert_allclose(bound_reward(raw, 10.0, "clip"), [-10, 0.5, 10])
+    assert float(jnp.max(jnp.abs(bound_reward(raw, 10.0, "tanh")))) < 10.0
+    grad = jax.grad(lambda x: bound_reward(x, 10.0, "tanh").sum())(raw)
+    assert float(jnp.min(grad)) > 0.0
+
+
+def test_absorbing_padding_of_an_early_terminated_episode() -> None:
+    obs = np.arange(8, dtype=np.float32).reshape(4, 2)  # T = 3 steps
+    acts = np.full((3, 1), 0.5, np.float32)
+    feats = trajectory_features(obs, acts, terminated=True, horizon=5, reward_input="sa")
+    assert feats.shape == (5, 2 + 1 + 1)
+    np.testing.assert_array_equal(feats[:3, :2], obs[:3])  # real states s_0..s_2
+    np.testing.assert_array_equal(feats[:3, 2], 0.0)  # flag off
+    np.testing.assert_array_equal(feats[3:], [[0, 0, 1, 0], [0, 0, 1, 0]])  # absorbing, zero action
+    ss = trajectory_features(obs, acts, terminated=True, horizon=5, reward_input="ss")
+    np.testing.assert_array_equal(ss[2], [4, 5, 0, 0, 0, 1])  # last real step leads into s_abs
+    full = trajectory_features(obs, acts, terminated=False, horizon=3, reward_input="s")
+    np.testing.assert_array_equal(full[:, :2], obs[:3])
+    with pytest.raises(ValueError, match="cannot be aligned"):
+        trajectory_features(obs, acts, terminated=False, horizon=5, reward_input="s")
+
+
+def test_mixup_is_time_aligned_with_scheduled_targets() -> None:
+    expert = (10.0 + np.arange(6, dtype=np.float32) ** 2).reshape(1, 3, 2)
+    lambdas = np.array([0.0, 0.5, 1.0])
+    data = RankingData(expert, lambdas, np.array([0.0, 4.0, 10.0]), holdout_fraction=0.0)
+    agent = np.arange(6, dtype=np.float32).reshape(3, 2)
+    data.add([agent], np.random.default_rng(0))
+    inputs, targets, is_expert = data.sample(np.random.default_rng(1), 4, 64)
+    assert inputs.shape == (4, 64, 2) and targets.shape == (4, 64)
+    for x, y, e in zip(inputs.reshape(-1, 2), targets.ravel(), is_expert.ravel(), strict=True):
+        lam = {0.0: 0.0, 4.0: 0.5, 10.0: 1.0}[float(y)]
+        t = [i for i in range(3) if np.allclose(x, agent[i] + lam * (expert[0, i] - agent[i]))]
+        assert len(t) == 1  # the mixture of one time step with the expert at the same step
+        assert e == (lam == 1.0)
+
+
+def test_holdout_is_a_shuffled_share_of_rows() -> None:
+    expert = np.zeros((2, 100, 1), np.float32)
+    data = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), holdout_fraction=0.1)
+    data.add([np.zeros((100, 1), np.float32)] * 20, np.random.default_rng(0))
+    held = data.holdout_rows
+    assert 120 < len(held) < 280  # about 10% of 2000 rows
+    assert held[:, 0].min() < 5 and held[:, 0].max() > 15  # drawn across the data, not its tail
+    inputs, targets, _ = data.holdout()
+    assert len(inputs) == 2 * len(held)
+    data.clear()
+    assert data.n_trajectories == 0 and len(data.train_rows) == 0
+
+
+def test_tabular_fit_approaches_the_closed_form() -> None:
+    # One-hot states; agent and expert visit them with different frequencies. The pointwise minimizer
+    # of L_k is r*(s) = k rho_E(s) / (rho_E(s) + rho_pi(s)) (App. A, Eq. 9).
+    n_states, horizon, k = 4, 2000, 1.0
+    rng = np.random.default_rng(0)
+    rho_pi, rho_e = np.array([0.5, 0.3, 0.15, 0.05]), np.array([0.05, 0.15, 0.3, 0.5])
+    eye = np.eye(n_states, dtype=np.float32)
+    agent = eye[rng.choice(n_states, size=horizon, p=rho_pi)]
+    expert = eye[rng.choice(n_states, size=horizon, p=rho_e)]
+    data = RankingData(expert[None], np.array([0.0, 1.0]), np.array([0.0, k]), holdout_fraction=0.0)
+    data.add([agent], rng)
+    cfg = RewardConfig(hidden_sizes=(32,), lr=1e-3, weight_decay=0.0, batch_size=4096, r_max=10.0)
+    player = RewardPlayer(n_states, "s", "regression", cfg)
+    state, _ = player.fit_steps(player.init(jax.random.key(0)), data, 3000, rng)
+    fitted = np.asarray(player.reward(state.params, eye))
+    # Expected from the empirical visitation counts of this sample.
+    p_pi, p_e = agent.mean(0), expert.mean(0)
+    np.testing.assert_allclose(fitted, k * p_e / (p_e + p_pi), atol=0.03)
+
+
+def test_supremum_player_separates_agent_and_expert() -> None:
+    eye = np.eye(2, dtype=np.float32)
+    data = RankingData(np.tile(eye[1], (1, 50, 1)), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.0)
+    data.add([np.tile(eye[0], (50, 1))], np.random.default_rng(0))
+    player = RewardPlayer(2, "s", "supremum", RewardConfig(hidden_sizes=(16,), batch_size=64, r_max=5.0))
+    state, _ = player.fit_steps(player.init(jax.random.key(0)), data, 500, np.random.default_rng(1))
+    rewards = np.asarray(player.reward(state.params, eye))
+    assert rewards[1] - rewards[0] > 8.0 and np.all(np.abs(rewards) < 5.0)
+
+
+def test_early_stopping_ends_and_keeps_the_best_holdout() -> None:
+    rng = np.random.default_rng(0)
+    expert = rng.normal(size=(1, 200, 3)).astype(np.float32) + 1.0
+    data = RankingData(expert, lambda_grid(2), target_schedule(lambda_grid(2), 0, 10), holdout_fraction=0.1)
+    data.add([rng.normal(size=(200, 3)).astype(np.float32) for _ in range(3)], rng)
+    cfg = RewardConfig(batch_size=128, patience=2, max_epochs=200)
+    player = RewardPlayer(3, "s", "regression", cfg)
+    state = player.init(jax.random.key(0))
+    before = player.holdout_loss(state.params, data)
+    state, metrics = player.fit_until_converged(state, data, rng)
+    assert metrics["reward/epochs"] < 200  # stopping triggered
+    assert metrics["reward/holdout_loss"] < before
+    assert player.holdout_loss(state.params, data) == pytest.approx(metrics["reward/holdout_loss"], rel=1e-5)
