@@ -2,10 +2,17 @@
 
 from __future__ import annotations
 
-import pytest
+import os
+import tempfile
 
-import rankgame.envs  # noqa: F401  (registers the toy tasks)
-from rankgame.policy.sac import SACConfig, sac_preset
+# Share compiled XLA programs between the many small runs (and subprocesses) of the test suite.
+os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", os.path.join(tempfile.gettempdir(), "rankgame-test-jax-cache"))
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
+
+import pytest  # noqa: E402
+
+import rankgame.envs  # noqa: E402, F401  (registers the toy tasks)
+from rankgame.policy.sac import SACConfig, sac_preset  # noqa: E402
 
 
 @pytest.fixture

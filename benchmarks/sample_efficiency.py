@@ -1,0 +1,120 @@
+"""Normalized score of ranking-game methods at fixed step budgets, over seeds and tasks.
+
+Launches ``rankgame train`` for every (env, method, seed) not already finished under ``--root``,
+two at a time, each pinned to its own core (the fastest way to use a 2-core machine), then prints
+the mean and standard deviation across seeds of the normalized score at each checkpoint step
+(``--at``), as JSON and as a Markdown table, beside the authors' released RANK-PAL(auto) curves.
+
+    python benchmarks/sample_efficiency.py --envs Hopper-v5 HalfCheetah-v5 Walker2d-v5 \
+        --methods rank-pal-auto rank-ral-auto --seeds 0 1 2 --steps 300000 --root runs/sample-eff
+    python benchmarks/sample_efficiency.py --summarize-only --root runs/sample-eff ...
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+#: Authors' released RANK-PAL(auto) curves, normalized by their experts (LfO, 1 expert trajectory).
+PUBLISHED = {
+    "Hopper-v5": {100_000: 86, 300_000: 92},
+    "HalfCheetah-v5": {100_000: 47, 300_000: 79},
+    "Walker2d-v5": {100_000: 18, 300_000: 65},
+    "Ant-v5": {100_000: 22, 300_000: 80},
+    "Humanoid-v5": {100_000: 5, 300_000: 68},
+}
+
+
+def run_dir(root: Path, env: str, method: str, seed: int) -> Path:
+    return root / f"{env}__{method}__s{seed}"
+
+
+def launch_all(args: argparse.Namespace) -> None:
+    """Run the missing trainings, two pinned single-core processes at a time."""
+    jobs = [
+        (env, method, seed)
+        for env in args.envs
+        for method in args.methods
+        for seed in args.seeds
+        if not (run_dir(args.root, env, method, seed) / "policy.msgpack").exists()
+    ]
+    running: list[subprocess.Popen] = []
+    for i, (env, method, seed) in enumerate(jobs):
+        out = run_dir(args.root, env, method, seed)
+        cmd = [sys.executable, "-m", "rankgame.cli", "train", "--env", env, "--method", method, "--seed", str(seed)]
+        cmd += ["--steps", str(args.steps), "--out", str(out), "--no-progress"]
+        cmd += ["--resume"] if (out / "checkpoint.npz").exists() else []
+        core = str(i % 2)
+        if len(running) == 2:
+            running.pop(0).wait()
+        out.parent.mkdir(parents=True, exist_ok=True)
+        log = open(f"{out}.log", "a")  # noqa: SIM115  (closed when the process ends)
+        running.append(subprocess.Popen(["taskset", "-c", core, *cmd], stdout=log, stderr=log, env=os.environ))
+    for proc in running:
+        proc.wait()
+
+
+def score_at(out: Path, step: int) -> float | None:
+    """Normalized score logged at ``step`` (NaN-free), or None if the run has not got there."""
+    path = out / "metrics.csv"
+    if not path.exists():
+        return None
+    with path.open() as handle:
+        for row in csv.DictReader(handle):
+            if int(row["env_steps"]) == step:
+                return float(row["normalized_score"])
+    return None
+
+
+def summarize(args: argparse.Namespace) -> dict:
+    table = {}
+    for env in args.envs:
+        for method in args.methods:
+            for step in args.at:
+                scores = [score_at(run_dir(args.root, env, method, s), step) for s in args.seeds]
+                scores = [s for s in scores if s is not None]
+                table[f"{env} {method} {step}"] = {
+                    "env": env,
+                    "method": method,
+                    "step": step,
+                    "seeds": len(scores),
+                    "mean": round(float(np.mean(scores)), 1) if scores else None,
+                    "std": round(float(np.std(scores)), 1) if scores else None,
+                    "published_rank_pal_auto": PUBLISHED.get(env, {}).get(step),
+                }
+    return table
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--envs", nargs="+", default=["Hopper-v5", "HalfCheetah-v5", "Walker2d-v5"])
+    parser.add_argument("--methods", nargs="+", default=["rank-pal-auto", "rank-ral-auto"])
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    parser.add_argument("--steps", type=int, default=300_000)
+    parser.add_argument("--at", nargs="+", type=int, default=[100_000, 300_000])
+    parser.add_argument("--root", type=Path, default=Path("runs/sample-efficiency"))
+    parser.add_argument("--summarize-only", action="store_true")
+    args = parser.parse_args()
+    if not args.summarize_only:
+        launch_all(args)
+    table = summarize(args)
+    print(json.dumps(list(table.values())))
+    print("\n| env | method | steps | seeds | normalized score | published RANK-PAL(auto) |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for row in table.values():
+        score = "-" if row["mean"] is None else f"{row['mean']} ± {row['std']}"
+        print(
+            f"| {row['env']} | {row['method']} | {row['step']} | {row['seeds']} | {score} | "
+            f"{row['published_rank_pal_auto'] or '-'} |"
+        )
+
+
+if __name__ == "__main__":
+    main()
