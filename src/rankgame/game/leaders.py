@@ -3,7 +3,9 @@
 * PAL (policy as leader): the reward is fit *to convergence* on the current iteration's agent data
   only, judged by a shuffled holdout (Alg. 2).
 * RAL (reward as leader): the reward is fit on *all* agent data so far, with ``|D| / batch`` gradient
-  steps per iteration, ``|D|`` being the number of agent states collected so far (Alg. 3).
+  steps per iteration (Alg. 3). ``|D|`` counts the real agent states collected so far, not the
+  absorbing states that pad short episodes: padding would multiply the budget of an early phase
+  full of short episodes by up to H / (episode length) without adding information.
 """
 
 from __future__ import annotations
@@ -15,6 +17,9 @@ import numpy as np
 
 from rankgame.reward.player import RewardPlayer, RewardState
 from rankgame.reward.ranking_data import RankingData
+
+#: RAL only logs its holdout loss; a fixed-size subset keeps that cheap as the data grows.
+RAL_HOLDOUT_ROWS = 4096
 
 
 def add_agent_data(
@@ -32,10 +37,10 @@ def fit_reward(
     """One reward-player turn with the leader's budget."""
     if leader == "pal":
         return player.fit_until_converged(state, data, rng)
-    n_updates = max(1, math.ceil(data.n_trajectories * data.horizon / player.config.batch_size))
+    n_updates = max(1, math.ceil(data.n_real_states / player.config.batch_size))
     state, train_loss = player.fit_steps(state, data, n_updates, rng)
     return state, {
         "reward/train_loss": train_loss,
-        "reward/holdout_loss": player.holdout_loss(state.params, data),
+        "reward/holdout_loss": player.holdout_loss(state.params, data, max_rows=RAL_HOLDOUT_ROWS),
         "reward/epochs": float("nan"),
     }

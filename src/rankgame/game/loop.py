@@ -215,7 +215,7 @@ class RankingGame:
         )
         lambdas = lambda_grid(cfg.interpolations) if self.method.rankings == "auto" else np.array([0.0, 1.0])
         targets = target_schedule(lambdas, cfg.agent_target, cfg.agent_target + cfg.k, cfg.schedule, cfg.beta)
-        self.data = RankingData(expert_inputs, lambdas, targets, cfg.reward.holdout_fraction)
+        self.data = RankingData(expert_inputs, lambdas, targets, cfg.reward.holdout_fraction, flag_index=spec.obs_dim)
         self.expert_return = float(expert.returns.mean())
         self.random_return = float(expert.metadata.get("random_return_mean", np.nan))
         if not np.isfinite(self.random_return):
@@ -248,15 +248,19 @@ class RankingGame:
         """The reward player's move at the end of an iteration (nothing if no episode finished)."""
         if not self.finished:
             return
+        new = np.concatenate(self.finished)
         add_agent_data(self.method.leader, self.data, self.finished, self.rng)
         self.finished = []
         self.reward_state, self.reward_metrics = fit_reward(
             self.method.leader, self.player, self.reward_state, self.data, self.rng
         )
-        params = self.reward_state.params
-        agent = self.data.agent[-1]
-        self.reward_metrics["reward/agent"] = float(self.player.reward(params, agent).mean())
-        self.reward_metrics["reward/expert"] = float(self.player.reward(params, self.data.expert[0]).mean())
+        self.reward_metrics["reward/agent"] = self._mean_real_reward(new)
+        self.reward_metrics["reward/expert"] = self._mean_real_reward(self.data.expert.reshape(-1, self.data.dim))
+
+    def _mean_real_reward(self, inputs: np.ndarray) -> float:
+        """Mean learned reward ``()`` over the inputs ``(N, d)`` that are real states, not absorbing ones."""
+        real = inputs[inputs[:, self.learner.spec.obs_dim] == 0.0]
+        return float(self.player.reward(self.reward_state.params, real).mean()) if len(real) else float("nan")
 
     def evaluate(self) -> tuple[float, float]:
         """Mean true return of the deterministic policy and its normalized score."""

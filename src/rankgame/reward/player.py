@@ -133,9 +133,9 @@ class RewardPlayer:
             losses.append(loss)
         return state, float(np.mean(jax.device_get(losses)))
 
-    def holdout_loss(self, params: Any, data: RankingData) -> float:
-        """Loss on every holdout input (NaN when there is no holdout)."""
-        inputs, targets, is_expert = data.holdout()
+    def holdout_loss(self, params: Any, data: RankingData, max_rows: int | None = None) -> float:
+        """Loss on the holdout inputs (NaN when there is no holdout); see :meth:`RankingData.holdout`."""
+        inputs, targets, is_expert = data.holdout(max_rows)
         if len(inputs) == 0:
             return float("nan")
         # Pad to a power of two so that a growing holdout compiles only a few shapes.

@@ -25,9 +25,18 @@ class RankingData:
         lambdas: ``(G,)`` mixture weights, ``0`` (agent) first and ``1`` (expert) last.
         targets: ``(G,)`` regression target of each mixture (non-decreasing).
         holdout_fraction: share of agent rows kept out of training.
+        flag_index: column of the absorbing flag in the inputs, to count real (non-padding) states;
+            ``None`` counts every row as real.
     """
 
-    def __init__(self, expert: np.ndarray, lambdas: np.ndarray, targets: np.ndarray, holdout_fraction: float) -> None:
+    def __init__(
+        self,
+        expert: np.ndarray,
+        lambdas: np.ndarray,
+        targets: np.ndarray,
+        holdout_fraction: float,
+        flag_index: int | None = None,
+    ) -> None:
         if expert.ndim != 3 or len(expert) == 0:
             raise ValueError(f"expert inputs must have shape (M, H, d) with M >= 1, got {expert.shape}")
         if lambdas.shape != targets.shape or lambdas[0] != 0.0 or lambdas[-1] != 1.0:
@@ -40,10 +49,12 @@ class RankingData:
         self.lambdas = lambdas.astype(np.float32)
         self.targets = targets.astype(np.float32)
         self.holdout_fraction = holdout_fraction
+        self.flag_index = flag_index
         self.horizon, self.dim = expert.shape[1], expert.shape[2]
         self.agent = np.zeros((0, self.horizon, self.dim), np.float32)
         self.train_rows = np.zeros((0, 2), np.int64)
         self.holdout_rows = np.zeros((0, 3), np.int64)  # (i, t, expert j), fixed for a stable holdout
+        self.n_real_states = 0  # agent states that are not absorbing padding
 
     @property
     def n_trajectories(self) -> int:
@@ -52,6 +63,7 @@ class RankingData:
     def clear(self) -> None:
         """Forget all agent data (PAL keeps only the current iteration's)."""
         self.agent = self.agent[:0]
+        self.n_real_states = 0
         self.train_rows = self.train_rows[:0]
         self.holdout_rows = self.holdout_rows[:0]
 
@@ -64,6 +76,8 @@ class RankingData:
             raise ValueError(f"agent inputs have shape {new.shape[1:]}, expected {(self.horizon, self.dim)}")
         first = len(self.agent)
         self.agent = np.concatenate([self.agent, new])
+        real = new[..., self.flag_index] == 0.0 if self.flag_index is not None else np.ones(new.shape[:2], bool)
+        self.n_real_states += int(real.sum())
         idx, t = np.meshgrid(np.arange(first, len(self.agent)), np.arange(self.horizon), indexing="ij")
         rows = np.stack([idx.ravel(), t.ravel()], axis=1)
         held = rng.uniform(size=len(rows)) < self.holdout_fraction
@@ -89,16 +103,24 @@ class RankingData:
         inputs = self._mix(rows[..., 0], rows[..., 1], experts, group)
         return inputs, self.targets[group], (group == len(self.lambdas) - 1).astype(np.float32)
 
-    def holdout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Every mixture of every holdout row: inputs ``(R G, d)``, targets ``(R G,)``, is-expert ``(R G,)``."""
+    def holdout(self, max_rows: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every mixture of the holdout rows: inputs ``(R G, d)``, targets ``(R G,)``, is-expert ``(R G,)``.
+
+        ``max_rows`` keeps an evenly strided subset of at most that many rows (the same subset each time
+        the data is unchanged).
+        """
         n_groups = len(self.lambdas)
-        rows = np.repeat(self.holdout_rows, n_groups, axis=0)
-        group = np.tile(np.arange(n_groups), len(self.holdout_rows))
+        held = self.holdout_rows
+        if max_rows is not None and len(held) > max_rows:
+            held = held[np.linspace(0, len(held) - 1, max_rows).astype(np.int64)]
+        rows = np.repeat(held, n_groups, axis=0)
+        group = np.tile(np.arange(n_groups), len(held))
         inputs = self._mix(rows[:, 0], rows[:, 1], rows[:, 2], group)
         return inputs, self.targets[group], (group == n_groups - 1).astype(np.float32)
 
     def state_dict(self) -> dict[str, np.ndarray]:
         return {
+            "ranking/n_real_states": np.asarray(self.n_real_states),
             "ranking/agent": self.agent,
             "ranking/train_rows": self.train_rows,
             "ranking/holdout_rows": self.holdout_rows,
@@ -108,3 +130,4 @@ class RankingData:
         self.agent = state["ranking/agent"]
         self.train_rows = state["ranking/train_rows"]
         self.holdout_rows = state["ranking/holdout_rows"]
+        self.n_real_states = int(state["ranking/n_real_states"])
