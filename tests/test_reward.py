@@ -130,7 +130,7 @@ def test_supremum_player_separates_agent_and_expert() -> None:
     data = RankingData(np.tile(eye[1], (1, 50, 1)), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.0)
     data.add([np.tile(eye[0], (50, 1))], np.random.default_rng(0))
     player = RewardPlayer(2, "s", "supremum", RewardConfig(hidden_sizes=(16,), batch_size=64, r_max=5.0))
-    state, _ = player.fit_steps(player.init(jax.random.key(0)), data, 500, np.random.default_rng(1))
+    state, _ = player.fit_steps(player.init(jax.random.key(0)), data, 1000, np.random.default_rng(1))
     rewards = np.asarray(player.reward(state.params, eye))
     assert rewards[1] - rewards[0] > 8.0 and np.all(np.abs(rewards) < 5.0)
 
@@ -148,3 +148,17 @@ def test_early_stopping_ends_and_keeps_the_best_holdout() -> None:
     assert metrics["reward/epochs"] < 200  # stopping triggered
     assert metrics["reward/holdout_loss"] < before
     assert player.holdout_loss(state.params, data) == pytest.approx(metrics["reward/holdout_loss"], rel=1e-5)
+
+
+def test_real_states_are_counted_without_absorbing_padding() -> None:
+    expert = np.zeros((1, 4, 2), np.float32)
+    data = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.5, flag_index=1)
+    short = np.array([[3.0, 0.0], [4.0, 0.0], [0.0, 1.0], [0.0, 1.0]], np.float32)  # 2 real steps, 2 absorbing
+    data.add([short, np.zeros((4, 2), np.float32)], np.random.default_rng(0))
+    assert data.n_real_states == 2 + 4
+    held = len(data.holdout_rows)
+    inputs, _, _ = data.holdout(max_rows=1)
+    assert held > 1 and len(inputs) == 2  # one row, both mixtures
+    restored = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.5, flag_index=1)
+    restored.load_state_dict(data.state_dict())
+    assert restored.n_real_states == 6 and len(restored.holdout_rows) == held

@@ -39,43 +39,37 @@ def _preset_from_argv(argv: Sequence[str], default: str) -> str:
     return default
 
 
-def _cmd_expert(argv: Sequence[str]) -> int:
-    from rankgame.expert import ExpertConfig, train_expert
+def _config_with_sac_preset(argv: Sequence[str], command: str, description: str, make_config, default_preset: str):
+    """Parse ``argv`` into the config made by ``make_config(sac=preset)``; ``--preset`` sets the SAC defaults."""
     from rankgame.policy.sac import SAC_PRESETS
 
-    preset = _preset_from_argv(argv, "modern")
+    preset = _preset_from_argv(argv, default_preset)
     if preset not in SAC_PRESETS:
         raise RankGameError(f"unknown preset {preset!r}; choose from {', '.join(SAC_PRESETS)}")
-    default = ExpertConfig(sac=SAC_PRESETS[preset])
-    parser = _Parser(
-        prog=f"{PROG} expert",
-        description="Train a SAC expert on the true reward, then record trajectories of its best policy.",
+    default = make_config(sac=SAC_PRESETS[preset])
+    parser = _Parser(prog=f"{PROG} {command}", description=description)
+    parser.add_argument(
+        "--preset", choices=list(SAC_PRESETS), default=preset, help=f"SAC preset (default: {default_preset})"
     )
-    parser.add_argument("--preset", choices=list(SAC_PRESETS), default=preset, help="SAC preset (default: modern)")
     add_dataclass_options(parser, default)
-    cfg = dataclass_from_args(parser.parse_args(argv), default)
-    summary = train_expert(cfg, command=shlex.join([PROG, "expert", *argv]))
-    print(json.dumps(summary, indent=2))
+    return dataclass_from_args(parser.parse_args(argv), default)
+
+
+def _cmd_expert(argv: Sequence[str]) -> int:
+    from rankgame.expert import ExpertConfig, train_expert
+
+    description = "Train a SAC expert on the true reward, then record trajectories of its best policy."
+    cfg = _config_with_sac_preset(argv, "expert", description, ExpertConfig, "modern")
+    print(json.dumps(train_expert(cfg, command=shlex.join([PROG, "expert", *argv])), indent=2))
     return 0
 
 
 def _cmd_train(argv: Sequence[str]) -> int:
     from rankgame.game.loop import TrainConfig, train
-    from rankgame.policy.sac import SAC_PRESETS
 
-    preset = _preset_from_argv(argv, "paper")
-    if preset not in SAC_PRESETS:
-        raise RankGameError(f"unknown preset {preset!r}; choose from {', '.join(SAC_PRESETS)}")
-    default = TrainConfig(sac=SAC_PRESETS[preset])
-    parser = _Parser(
-        prog=f"{PROG} train",
-        description="Imitate an expert by playing the ranking game (RANK-PAL / RANK-RAL / IMIT).",
-    )
-    parser.add_argument("--preset", choices=list(SAC_PRESETS), default=preset, help="SAC preset (default: paper)")
-    add_dataclass_options(parser, default)
-    cfg = dataclass_from_args(parser.parse_args(argv), default)
-    summary = train(cfg, command=shlex.join([PROG, "train", *argv]))
-    print(json.dumps(summary, indent=2))
+    description = "Imitate an expert by playing the ranking game (RANK-PAL / RANK-RAL / IMIT)."
+    cfg = _config_with_sac_preset(argv, "train", description, TrainConfig, "paper")
+    print(json.dumps(train(cfg, command=shlex.join([PROG, "train", *argv])), indent=2))
     return 0
 
 

@@ -18,9 +18,6 @@ import numpy as np
 from rankgame.reward.player import RewardPlayer, RewardState
 from rankgame.reward.ranking_data import RankingData
 
-#: RAL only logs its holdout loss; a fixed-size subset keeps that cheap as the data grows.
-RAL_HOLDOUT_ROWS = 4096
-
 
 def add_agent_data(
     leader: str, data: RankingData, trajectories: Sequence[np.ndarray], rng: np.random.Generator
@@ -41,6 +38,6 @@ def fit_reward(
     state, train_loss = player.fit_steps(state, data, n_updates, rng)
     return state, {
         "reward/train_loss": train_loss,
-        "reward/holdout_loss": player.holdout_loss(state.params, data, max_rows=RAL_HOLDOUT_ROWS),
+        "reward/holdout_loss": player.holdout_loss(state.params, data),
         "reward/epochs": float("nan"),
     }

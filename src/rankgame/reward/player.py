@@ -22,6 +22,9 @@ from rankgame.reward.ranking_data import RankingData
 
 RankingLoss = Literal["regression", "supremum"]
 
+#: The holdout loss is measured on an evenly strided subset of at most this many agent rows.
+HOLDOUT_MAX_ROWS = 4096
+
 
 @dataclass(frozen=True)
 class RewardConfig:
@@ -41,9 +44,11 @@ class RewardConfig:
     """Share of agent rows held out to decide when fitting has converged (PAL)."""
     patience: int = 3
     """Epochs without holdout improvement before fitting stops (PAL)."""
+    min_improvement: float = 0.01
+    """Relative decrease of the holdout loss that counts as an improvement (PAL)."""
     max_epochs: int = 50
     """Upper bound on epochs per fit (PAL)."""
-    chunk: int = 16
+    chunk: int = 8
     """Gradient steps fused into one jitted call."""
 
     def validate(self) -> None:
@@ -53,6 +58,7 @@ class RewardConfig:
             (self.r_max > 0, "r_max must be positive"),
             (0.0 <= self.holdout_fraction < 1.0, "holdout_fraction must lie in [0, 1)"),
             (self.patience > 0 and self.max_epochs > 0, "patience and max_epochs must be positive"),
+            (0.0 <= self.min_improvement < 1.0, "min_improvement must lie in [0, 1)"),
         ]
         for ok, message in checks:
             if not ok:
@@ -133,47 +139,51 @@ class RewardPlayer:
             losses.append(loss)
         return state, float(np.mean(jax.device_get(losses)))
 
-    def holdout_loss(self, params: Any, data: RankingData, max_rows: int | None = None) -> float:
-        """Loss on the holdout inputs (NaN when there is no holdout); see :meth:`RankingData.holdout`."""
-        inputs, targets, is_expert = data.holdout(max_rows)
+    def _holdout_batch(self, data: RankingData) -> tuple[jax.Array, ...] | None:
+        """Holdout inputs, targets, is-expert flags and weights, padded to a power of two (few shapes)."""
+        inputs, targets, is_expert = data.holdout(HOLDOUT_MAX_ROWS)
         if len(inputs) == 0:
-            return float("nan")
-        # Pad to a power of two so that a growing holdout compiles only a few shapes.
-        size = 1 << (len(inputs) - 1).bit_length()
-        pad = size - len(inputs)
+            return None
+        pad = (1 << (len(inputs) - 1).bit_length()) - len(inputs)
         weights = np.concatenate([np.ones(len(inputs), np.float32), np.zeros(pad, np.float32)])
         inputs = np.concatenate([inputs, np.zeros((pad, inputs.shape[1]), np.float32)])
         targets = np.concatenate([targets, np.zeros(pad, np.float32)])
         is_expert = np.concatenate([is_expert, np.zeros(pad, np.float32)])
-        return float(self._eval(params, inputs, targets, is_expert, weights))
+        return tuple(jnp.asarray(x) for x in (inputs, targets, is_expert, weights))
+
+    def holdout_loss(self, params: Any, data: RankingData) -> float:
+        """Loss on (at most ``HOLDOUT_MAX_ROWS`` rows of) the holdout; NaN when there is no holdout."""
+        batch = self._holdout_batch(data)
+        return float("nan") if batch is None else float(self._eval(params, *batch))
 
     def fit_until_converged(
         self, state: RewardState, data: RankingData, rng: np.random.Generator
     ) -> tuple[RewardState, dict[str, float]]:
         """Fit epoch by epoch until the holdout loss stops improving; keep the best parameters.
 
-        One epoch is as many gradient steps as it takes to draw each training input (every mixture of
-        every training row) once on average.
+        One epoch is as many gradient steps as it takes to draw every mixture of ``max(real agent
+        states, H)`` rows once on average. Absorbing padding is not counted: all its rows are the same
+        state, so an early phase of many short episodes would otherwise make epochs (and the time
+        between convergence checks) dozens of times longer without adding information.
         """
         cfg = self.config
-        per_epoch = max(1, math.ceil(len(data.train_rows) * len(data.lambdas) / cfg.batch_size))
-        best_loss, best_params, stale, epochs, train_loss = (
-            self.holdout_loss(state.params, data),
-            None,
-            0,
-            0,
-            float("nan"),
-        )
-        if not np.isfinite(best_loss):  # no holdout: a single epoch
+        rows = min(len(data.train_rows), max(data.n_real_states, data.horizon))
+        per_epoch = max(1, math.ceil(rows * len(data.lambdas) / cfg.batch_size))
+        holdout = self._holdout_batch(data)
+        if holdout is None:  # no holdout: a single epoch
             state, train_loss = self.fit_steps(state, data, per_epoch, rng)
             return state, {"reward/train_loss": train_loss, "reward/holdout_loss": float("nan"), "reward/epochs": 1.0}
+        best_loss = float(self._eval(state.params, *holdout))
         best_params = jax.tree.map(jnp.copy, state.params)  # the update donates state's buffers
+        stale, epochs, train_loss = 0, 0, float("nan")
         while epochs < cfg.max_epochs and stale < cfg.patience:
             state, train_loss = self.fit_steps(state, data, per_epoch, rng)
             epochs += 1
-            loss = self.holdout_loss(state.params, data)
+            loss = float(self._eval(state.params, *holdout))
             if loss < best_loss:
-                best_loss, best_params, stale = loss, jax.tree.map(jnp.copy, state.params), 0
+                improved = loss < best_loss * (1.0 - cfg.min_improvement)
+                best_loss, best_params = loss, jax.tree.map(jnp.copy, state.params)
+                stale = 0 if improved else stale + 1
             else:
                 stale += 1
         state = RewardState(params=best_params, opt_state=state.opt_state)
