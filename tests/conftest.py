@@ -47,7 +47,21 @@ def toy_expert_file(tmp_path_factory: pytest.TempPathFactory):
 
 #: Command-line options of a small, fast ranking game on the toy task.
 TOY_TRAIN_ARGS = (
-    "--env", "rankgame/PointGoal-v0", "--sac.hidden-sizes", "64", "64", "--sac.batch-size", "64",
-    "--sac.start-steps", "400", "--sac.update-after", "400", "--sac.update-every", "40",
-    "--reward.batch-size", "256", "--no-progress", "--no-tensorboard",
+    "--env",
+    "rankgame/PointGoal-v0",
+    "--sac.hidden-sizes",
+    "64",
+    "64",
+    "--sac.batch-size",
+    "64",
+    "--sac.start-steps",
+    "400",
+    "--sac.update-after",
+    "400",
+    "--sac.update-every",
+    "40",
+    "--reward.batch-size",
+    "256",
+    "--no-progress",
+    "--no-tensorboard",
 )

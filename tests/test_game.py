@@ -46,8 +46,24 @@ def test_every_method_runs(toy_expert_file: Path, tmp_path: Path) -> None:
 
 def _train_cmd(out: Path, expert: Path, *extra: str) -> list[str]:
     return [
-        sys.executable, "-m", "rankgame.cli", "train", *TOY_TRAIN_ARGS, "--expert", str(expert), "--out", str(out),
-        "--steps", "2400", "--eval-every", "200", "--eval-episodes", "1", "--checkpoint-every", "400", *extra,
+        sys.executable,
+        "-m",
+        "rankgame.cli",
+        "train",
+        *TOY_TRAIN_ARGS,
+        "--expert",
+        str(expert),
+        "--out",
+        str(out),
+        "--steps",
+        "2400",
+        "--eval-every",
+        "200",
+        "--eval-episodes",
+        "1",
+        "--checkpoint-every",
+        "400",
+        *extra,
     ]
 
 
@@ -98,6 +114,13 @@ def test_bad_training_input_gives_one_line_errors(toy_expert_file: Path, tmp_pat
     ]
     wide = save_trajectories(tmp_path / "wide.npz", "rankgame/PointGoal-v0", widened)
     _one_line_error([*base, "--expert", str(wide)], "expert data has obs_dim=3, act_dim=1")
+    # An episode cut short by a time limit cannot be aligned with the horizon:
+    cut = [
+        Trajectory(t.obs[:11], t.acts[:10], t.rews[:10], t.terminated[:10], t.truncated[9:19])
+        for t in data.trajectories
+    ]
+    short = save_trajectories(tmp_path / "short.npz", "rankgame/PointGoal-v0", cut)
+    _one_line_error([*base, "--expert", str(short)], "cannot be aligned")
     # Non-finite values:
     with np.load(toy_expert_file) as archive:
         arrays = {key: archive[key] for key in archive.files}

@@ -207,12 +207,15 @@ class RankingGame:
         self.rng = np.random.default_rng([cfg.seed, 1])
 
         used = expert.trajectories[: cfg.expert_trajectories]
-        expert_inputs = np.stack(
-            [
-                self._features(t.obs, to_normalized_action(t.acts, spec.act_low, spec.act_high), bool(t.terminated[-1]))
-                for t in used
-            ]
-        )
+        try:
+            expert_inputs = np.stack(
+                [
+                    self._features(t.obs, to_normalized_action(t.acts, spec.act_low, spec.act_high), t.terminated[-1])
+                    for t in used
+                ]
+            )
+        except ValueError as exc:
+            raise RankGameError(f"expert data cannot be used on {cfg.env}: {exc}") from None
         lambdas = lambda_grid(cfg.interpolations) if self.method.rankings == "auto" else np.array([0.0, 1.0])
         targets = target_schedule(lambdas, cfg.agent_target, cfg.agent_target + cfg.k, cfg.schedule, cfg.beta)
         self.data = RankingData(expert_inputs, lambdas, targets, cfg.reward.holdout_fraction, flag_index=spec.obs_dim)
