@@ -120,3 +120,13 @@ def test_corrupt_policy_file_gives_one_line_error(tmp_path: Path) -> None:
     bad = tmp_path / "p.msgpack"
     bad.write_bytes(b"\x93not msgpack at all")
     assert_one_line_error(run_cli("record", "--policy", str(bad)), "unreadable or truncated policy file")
+
+
+def test_plot_draws_curves_and_rejects_bad_runs(tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "metrics.csv").write_text("env_steps,normalized_score\n1000,10\n2000,55.5\n")
+    assert main(["plot", str(run), "--out", str(tmp_path / "c.png")]) == 0
+    assert (tmp_path / "c.png").read_bytes()[:4] == b"\x89PNG"
+    assert_one_line_error(run_cli("plot", str(run), "--column", "nope"), "has no column 'nope'")
+    assert_one_line_error(run_cli("plot", str(tmp_path / "none")), "no metrics.csv")

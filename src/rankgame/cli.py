@@ -124,11 +124,24 @@ def _cmd_experts(argv: Sequence[str]) -> int:
     return 0
 
 
+def _cmd_plot(argv: Sequence[str]) -> int:
+    from rankgame.plot import plot_runs
+
+    parser = _Parser(prog=f"{PROG} plot", description="Plot learning curves of run folders (metrics.csv).")
+    parser.add_argument("runs", nargs="+", type=Path, help="run folders written by rankgame train or expert")
+    parser.add_argument("--column", default="normalized_score", help="metrics.csv column (default: normalized_score)")
+    parser.add_argument("--out", type=Path, default=Path("curves.png"), help="image to write (default: curves.png)")
+    args = parser.parse_args(argv)
+    print(plot_runs(args.runs, args.out, args.column))
+    return 0
+
+
 COMMANDS = {
     "train": (_cmd_train, "imitate an expert with the ranking game (rank-pal-auto, rank-ral-auto, ...)"),
     "expert": (_cmd_expert, "train a SAC expert on the true reward and record its trajectories"),
     "record": (_cmd_record, "record trajectories of a saved policy"),
     "experts": (_cmd_experts, "list the shipped expert data"),
+    "plot": (_cmd_plot, "plot learning curves of run folders"),
 }
 
 
