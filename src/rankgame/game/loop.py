@@ -239,7 +239,7 @@ class RankingGame:
         if not self.episode.obs:
             self.episode.obs.append(result.obs)
         self.episode.obs.append(result.next_obs)
-        self.episode.acts.append(learner.normalize_actions(result.act))
+        self.episode.acts.append(result.act_norm)
         if result.terminated or result.truncated:
             if result.terminated or len(self.episode.acts) >= self.horizon:
                 obs, acts = np.asarray(self.episode.obs), np.asarray(self.episode.acts, np.float32)

@@ -15,7 +15,7 @@ import jax
 import numpy as np
 
 from rankgame.envs.make import env_spec
-from rankgame.envs.rollout import PolicyFn, to_env_action, to_normalized_action
+from rankgame.envs.rollout import PolicyFn, to_env_action
 from rankgame.policy.buffer import ReplayBuffer
 from rankgame.policy.sac import SAC, RewardFn, SACConfig, SACState, env_reward
 from rankgame.reward.features import absorbing_obs, flag_obs
@@ -27,6 +27,7 @@ class StepResult:
 
     obs: np.ndarray
     act: np.ndarray  # environment units
+    act_norm: np.ndarray  # SAC's normalized box [-1, 1]
     next_obs: np.ndarray
     terminated: bool
     truncated: bool
@@ -86,7 +87,7 @@ class SACLearner:
         act = to_env_action(act_norm, self.spec.act_low, self.spec.act_high)
         next_obs, rew, terminated, truncated, _ = self.env.step(act)
         self._store(self._obs, act_norm, next_obs, bool(terminated), float(rew))
-        result = StepResult(self._obs, act, next_obs, bool(terminated), bool(truncated))
+        result = StepResult(self._obs, act, act_norm, next_obs, bool(terminated), bool(truncated))
         self.env_steps += 1
         self._episode_return += float(rew)
         self._episode_length += 1
@@ -142,10 +143,6 @@ class SACLearner:
         actor_params = self.state.actor_params
         policy = make_policy_fn(self.sac, actor_params, self.spec.act_low, self.spec.act_high, self.rng, deterministic)
         return (lambda obs: policy(flag_obs(np.asarray(obs, np.float32)))) if self.absorbing else policy
-
-    def normalize_actions(self, acts: np.ndarray) -> np.ndarray:
-        """Environment-unit actions ``(..., act_dim)`` to SAC's normalized box."""
-        return to_normalized_action(acts, self.spec.act_low, self.spec.act_high)
 
 
 def make_policy_fn(
