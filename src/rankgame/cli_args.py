@@ -11,6 +11,7 @@ import argparse
 import ast
 import dataclasses
 import inspect
+import json
 import textwrap
 import types
 import typing
@@ -107,3 +108,8 @@ def dataclass_from_args(namespace: argparse.Namespace, default: Any, prefix: str
             parsed = getattr(namespace, prefix + f.name)
             changes[f.name] = tuple(parsed) if isinstance(value, tuple) and parsed is not None else parsed
     return dataclasses.replace(default, **changes)
+
+
+def config_to_json(config: Any) -> dict[str, Any]:
+    """A config dataclass as plain JSON data (paths and other objects as strings)."""
+    return json.loads(json.dumps(dataclasses.asdict(config), default=str))

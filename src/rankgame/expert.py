@@ -12,7 +12,7 @@ import importlib.metadata
 import platform
 import sys
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +20,7 @@ import jax
 import numpy as np
 from tqdm import tqdm
 
+from rankgame.cli_args import config_to_json
 from rankgame.data.trajectories import save_trajectories
 from rankgame.envs.make import make_env
 from rankgame.envs.rollout import episode_returns, random_policy, rollout
@@ -145,7 +146,7 @@ def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any
     spec = learner.spec
     logger = RunLogger(out, LOG_COLUMNS, tensorboard=cfg.tensorboard)
     command = command or " ".join(sys.argv)
-    provenance = {"command": command, "seed": cfg.seed, "config": _jsonable(asdict(cfg))}
+    provenance = {"command": command, "seed": cfg.seed, "config": config_to_json(cfg)}
     best_return, best_step = -np.inf, 0
     train_return = float("nan")
     metrics: dict[str, float] = {}
@@ -205,13 +206,3 @@ def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any
         best_step=best_step,
     )
     return {"env": cfg.env, "best_eval_return": best_return, "best_step": best_step, **summary}
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {k: _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (tuple, list)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, Path):
-        return str(value)
-    return value

@@ -10,7 +10,6 @@ the reward player keeps and how long it trains.
 from __future__ import annotations
 
 import csv
-import dataclasses
 import io
 import json
 import shlex
@@ -26,6 +25,7 @@ from tqdm import tqdm
 
 from rankgame.atomic import atomic_write_bytes
 from rankgame.checkpoint import flatten_tree, load_checkpoint, save_checkpoint, unflatten_tree
+from rankgame.cli_args import config_to_json
 from rankgame.data.experts import normalized_score, shipped_expert_path
 from rankgame.data.trajectories import TrajectoryFile, load_trajectories
 from rankgame.envs.make import env_spec, make_env
@@ -278,7 +278,7 @@ class RankingGame:
         learner = self.learner
         metadata = {
             **extra,
-            "config": json.loads(json.dumps(dataclasses.asdict(self.cfg), default=str)),
+            "config": config_to_json(self.cfg),
             "env_steps": learner.env_steps,
             "updates_owed": learner._updates_owed,
             "learner_rng": learner.rng.bit_generator.state,
@@ -343,9 +343,7 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
         raise RankGameError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
     out.mkdir(parents=True, exist_ok=True)
     command = command or shlex.join(sys.argv)
-    (out / "config.json").write_text(
-        json.dumps({"command": command, **json.loads(json.dumps(dataclasses.asdict(cfg), default=str))}, indent=2)
-    )
+    (out / "config.json").write_text(json.dumps({"command": command, **config_to_json(cfg)}, indent=2))
     logger = RunLogger(
         out, LOG_COLUMNS, tensorboard=cfg.tensorboard, purge_step=game.learner.env_steps if cfg.resume else None
     )

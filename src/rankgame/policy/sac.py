@@ -25,6 +25,8 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from rankgame.errors import require
+
 Batch = dict[str, jax.Array]
 #: ``(reward_params, batch) -> rews`` of shape ``(batch_size,)``.
 RewardFn = Callable[[Any, Batch], jax.Array]
@@ -82,9 +84,7 @@ class SACConfig:
             (all(h > 0 for h in self.hidden_sizes), "hidden_sizes must be positive"),
             (self.start_steps >= 0 and self.update_after >= 0, "start_steps and update_after must be >= 0"),
         ]
-        for ok, message in checks:
-            if not ok:
-                raise ValueError(message)
+        require(checks)
 
 
 #: Named presets. ``paper``: SpinningUp defaults used by the paper (App. C).

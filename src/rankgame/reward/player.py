@@ -15,6 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from rankgame.errors import require
 from rankgame.policy.sac import Batch
 from rankgame.reward.losses import regression_ranking_loss, supremum_loss
 from rankgame.reward.nets import Bound, RewardInput, RewardNet, batch_features, bound_reward
@@ -60,9 +61,7 @@ class RewardConfig:
             (self.patience > 0 and self.max_epochs > 0, "patience and max_epochs must be positive"),
             (0.0 <= self.min_improvement < 1.0, "min_improvement must lie in [0, 1)"),
         ]
-        for ok, message in checks:
-            if not ok:
-                raise ValueError(message)
+        require(checks)
 
 
 @flax.struct.dataclass
