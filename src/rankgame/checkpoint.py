@@ -33,6 +33,8 @@ def unflatten_tree(prefix: str, arrays: dict[str, np.ndarray], template: Any) ->
     leaves, treedef = jax.tree.flatten(template)
     restored = []
     for i, like in enumerate(leaves):
+        if f"{prefix}/{i}" not in arrays:
+            raise RankGameError(f"checkpoint does not match this configuration ({prefix} leaf {i} is missing)")
         value = arrays[f"{prefix}/{i}"]
         if _is_key(like):
             restored.append(jax.random.wrap_key_data(value, impl=jax.random.key_impl(like)))

@@ -275,22 +275,15 @@ class RankingGame:
 
     # --- checkpoints -------------------------------------------------------------------------
     def save(self, path: Path, extra: dict[str, Any]) -> None:
-        learner = self.learner
+        learner_meta, learner_arrays = self.learner.checkpoint()
         metadata = {
             **extra,
+            **learner_meta,
             "config": config_to_json(self.cfg),
-            "env_steps": learner.env_steps,
-            "updates_owed": learner._updates_owed,
-            "learner_rng": learner.rng.bit_generator.state,
             "game_rng": self.rng.bit_generator.state,
             "reward_metrics": self.reward_metrics,
         }
-        arrays = {
-            **flatten_tree("sac", learner.state),
-            **flatten_tree("reward", self.reward_state),
-            **learner.buffer.state_dict(),
-            **self.data.state_dict(),
-        }
+        arrays = {**learner_arrays, **flatten_tree("reward", self.reward_state), **self.data.state_dict()}
         save_checkpoint(path, metadata, arrays)
 
     def restore(self, path: Path) -> dict[str, Any]:
@@ -299,18 +292,11 @@ class RankingGame:
         for key in ("env", "method", "setting", "seed"):
             if str(saved_cfg[key]) != str(getattr(self.cfg, key)):
                 raise RankGameError(f"--{key} {getattr(self.cfg, key)} differs from the checkpoint's {saved_cfg[key]}")
-        learner = self.learner
-        learner.state = unflatten_tree("sac", arrays, learner.state)
+        self.learner.restore(metadata, arrays, seed=self.cfg.seed + int(metadata["env_steps"]))
         self.reward_state = unflatten_tree("reward", arrays, self.reward_state)
-        learner.buffer.load_state_dict(arrays)
         self.data.load_state_dict(arrays)
-        learner.env_steps = int(metadata["env_steps"])
-        learner._updates_owed = float(metadata["updates_owed"])
-        learner.rng.bit_generator.state = metadata["learner_rng"]
         self.rng.bit_generator.state = metadata["game_rng"]
         self.reward_metrics = metadata["reward_metrics"]
-        # The interrupted episode is lost: the environment starts a new one.
-        learner.reset_episode(seed=self.cfg.seed + learner.env_steps)
         return metadata
 
 

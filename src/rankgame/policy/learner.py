@@ -14,6 +14,7 @@ import gymnasium as gym
 import jax
 import numpy as np
 
+from rankgame.checkpoint import flatten_tree, unflatten_tree
 from rankgame.envs.make import env_spec
 from rankgame.envs.rollout import PolicyFn, to_env_action
 from rankgame.policy.buffer import ReplayBuffer
@@ -99,8 +100,22 @@ class SACLearner:
             self._obs = next_obs
         return result
 
-    def reset_episode(self, seed: int | None = None) -> None:
-        """Abandon the running episode and start a new one (used when resuming from a checkpoint)."""
+    def checkpoint(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """JSON metadata and arrays that :meth:`restore` turns back into this learner's state."""
+        metadata = {
+            "env_steps": self.env_steps,
+            "updates_owed": self._updates_owed,
+            "learner_rng": self.rng.bit_generator.state,
+        }
+        return metadata, {**flatten_tree("sac", self.state), **self.buffer.state_dict()}
+
+    def restore(self, metadata: dict[str, Any], arrays: dict[str, np.ndarray], seed: int) -> None:
+        """Inverse of :meth:`checkpoint`. The interrupted episode is lost: a new one starts from ``seed``."""
+        self.state = unflatten_tree("sac", arrays, self.state)
+        self.buffer.load_state_dict(arrays)
+        self.env_steps = int(metadata["env_steps"])
+        self._updates_owed = float(metadata["updates_owed"])
+        self.rng.bit_generator.state = metadata["learner_rng"]
         self._obs, _ = self.env.reset(seed=seed)
         self._episode_return, self._episode_length = 0.0, 0
 
