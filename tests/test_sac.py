@@ -67,6 +67,46 @@ def test_critic_regresses_to_the_reward_when_gamma_is_zero() -> None:
     assert float(jnp.max(jnp.mean((q - target) ** 2, axis=1))) < 0.05
 
 
+def _absorbing_batch(n_updates: int, batch: int, seed: int) -> dict[str, np.ndarray]:
+    """Transitions from real states (flag 0) into the absorbing state (zeros, flag 1)."""
+    data = _batch(n_updates, batch, seed=seed)
+    data["obs"][..., -1] = 0.0
+    data["next_obs"][:] = 0.0
+    data["next_obs"][..., -1] = 1.0
+    data["dones"][:] = 0.0
+    return data
+
+
+def _flag_reward(_params: None, batch: dict) -> jax.Array:
+    # r = 2 on real states, -1 on the absorbing state.
+    return 2.0 - 3.0 * batch["obs"][:, -1]
+
+
+def test_absorbing_state_is_valued_in_closed_form() -> None:
+    sac = SAC(3, 2, SACConfig(hidden_sizes=(8,), gamma=0.9), reward_fn=_flag_reward, absorbing=True)
+    assert float(sac.absorbing_value(None)) == pytest.approx(-1.0 / (1.0 - 0.9))
+
+
+def test_critic_learns_the_value_of_terminating() -> None:
+    # Every transition ends in s_abs: Q(s, a) = r(s) + gamma r(s_abs) / (1 - gamma) = 2 - 9 = -7.
+    cfg = SACConfig(hidden_sizes=(32, 32), gamma=0.9, critic_lr=3e-3)
+    sac = SAC(3, 2, cfg, reward_fn=_flag_reward, absorbing=True)
+    state, _ = sac.update(sac.init(jax.random.key(1)), _absorbing_batch(2000, 64, seed=3), None)
+    test = _absorbing_batch(1, 256, seed=4)
+    q = sac.critic.apply(state.critic_params, test["obs"][0], test["acts"][0])
+    np.testing.assert_allclose(np.asarray(q), -7.0, atol=0.3)
+
+
+def test_actor_ignores_rows_that_start_in_the_absorbing_state() -> None:
+    sac = SAC(3, 2, SACConfig(hidden_sizes=(8,)), reward_fn=_flag_reward, absorbing=True)
+    state = sac.init(jax.random.key(0))
+    before = jax.tree.map(np.asarray, state.actor_params)
+    loops = _absorbing_batch(3, 16, seed=5)
+    loops["obs"] = loops["next_obs"].copy()  # s_abs -> s_abs only
+    state, _ = sac.update(state, loops, None)
+    jax.tree.map(np.testing.assert_array_equal, before, jax.tree.map(np.asarray, state.actor_params))
+
+
 def test_learned_temperature_rises_when_entropy_is_below_target() -> None:
     cfg = SACConfig(hidden_sizes=(8,), learn_alpha=True, target_entropy=100.0, alpha_lr=0.1)
     sac = SAC(3, 2, cfg)

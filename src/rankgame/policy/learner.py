@@ -48,8 +48,8 @@ class SACLearner:
         store_env_reward: keep the environment reward in the buffer (needed by :func:`env_reward`).
         absorbing: DAC-style absorbing states (see :mod:`rankgame.reward.features`): observations get
             an absorbing flag, and a terminal step is stored as ``s -> s_abs`` followed by the
-            self-loop ``s_abs -> s_abs``, neither with a terminal mask, so the value of ending an
-            episode is learned from the reward of ``s_abs``.
+            self-loop ``s_abs -> s_abs``, neither with a terminal mask; SAC values ending an
+            episode at exactly ``r(s_abs) / (1 - gamma)`` with the current learned reward.
     """
 
     def __init__(
@@ -66,7 +66,7 @@ class SACLearner:
         self.config = config
         self.absorbing = absorbing
         sac_obs_dim = self.spec.obs_dim + int(absorbing)
-        self.sac = SAC(sac_obs_dim, self.spec.act_dim, config, reward_fn=reward_fn)
+        self.sac = SAC(sac_obs_dim, self.spec.act_dim, config, reward_fn=reward_fn, absorbing=absorbing)
         self.state: SACState = self.sac.init(jax.random.key(seed))
         extras = ("rews",) if store_env_reward else ()
         self.buffer = ReplayBuffer(config.buffer_size, sac_obs_dim, self.spec.act_dim, extras=extras)

@@ -167,6 +167,11 @@ def env_reward(_reward_params: Any, batch: Batch) -> jax.Array:
     return batch["rews"]
 
 
+def _weighted_mean(values: jax.Array, weights: jax.Array) -> jax.Array:
+    """Mean of ``values (B,)`` weighted by ``weights (B,)`` (0 when every weight is 0)."""
+    return jnp.sum(values * weights) / jnp.maximum(jnp.sum(weights), 1.0)
+
+
 @flax.struct.dataclass
 class SACState:
     """Everything SAC learns, as one pytree (saved, restored and carried through ``lax.scan``)."""
@@ -188,12 +193,20 @@ class SAC:
 
     Attributes:
         reward_fn: how each sampled batch is labelled with rewards (static: changing it recompiles).
+        absorbing: the last observation entry is a DAC-style absorbing flag (see
+            :mod:`rankgame.reward.features`). The absorbing state ``s_abs`` loops on itself whatever the
+            action, so its value is known exactly, ``r(s_abs) / (1 - gamma)``: the critic's target
+            uses it for every transition into ``s_abs`` instead of bootstrapping the critic there, and
+            the actor and temperature losses ignore rows that start in ``s_abs``. Bootstrapping the
+            self-loop lets the critic carry the value of real states over to ``s_abs`` (no action
+            there is ever taken by the policy), which makes terminating look as good as surviving.
     """
 
     obs_dim: int
     act_dim: int
     config: SACConfig
     reward_fn: RewardFn = env_reward
+    absorbing: bool = False
     actor: Actor = field(init=False)
     critic: TwinCritic = field(init=False)
 
@@ -251,8 +264,13 @@ class SAC:
             next_mean, next_log_std, jax.random.normal(k_next, next_mean.shape)
         )
         next_q = jnp.min(self.critic.apply(state.target_critic_params, batch["next_obs"], next_acts), axis=0)
-        target = rews + cfg.gamma * (1.0 - batch["dones"]) * (next_q - alpha * next_logp)
-        target = jax.lax.stop_gradient(target)
+        next_value = next_q - alpha * next_logp
+        # Rows whose actor/temperature loss counts: all, or those not starting in s_abs.
+        live = jnp.ones_like(rews)
+        if self.absorbing:
+            next_value = jnp.where(batch["next_obs"][:, -1] > 0.5, self.absorbing_value(reward_params), next_value)
+            live = 1.0 - batch["obs"][:, -1]
+        target = jax.lax.stop_gradient(rews + cfg.gamma * (1.0 - batch["dones"]) * next_value)
 
         def critic_loss_fn(critic_params: Any) -> tuple[jax.Array, jax.Array]:
             q = self.critic.apply(critic_params, batch["obs"], batch["acts"])
@@ -268,14 +286,14 @@ class SAC:
             mean, log_std = self.actor.apply(actor_params, batch["obs"])
             acts, logp = squashed_gaussian_sample(mean, log_std, noise)
             q_pi = jnp.min(self.critic.apply(critic_params, batch["obs"], acts), axis=0)
-            return jnp.mean(alpha * logp - q_pi), logp
+            return _weighted_mean(alpha * logp - q_pi, live), logp
 
         (actor_loss, logp), actor_grads = jax.value_and_grad(actor_loss_fn, has_aux=True)(state.actor_params)
         actor_updates, actor_opt_state = self.actor_tx.update(actor_grads, state.actor_opt_state)
         actor_params = optax.apply_updates(state.actor_params, actor_updates)
 
         log_alpha, alpha_opt_state = state.log_alpha, state.alpha_opt_state
-        entropy_gap = jax.lax.stop_gradient(jnp.mean(logp) + self.target_entropy)
+        entropy_gap = jax.lax.stop_gradient(_weighted_mean(logp, live) + self.target_entropy)
         if cfg.learn_alpha:
             alpha_grad = -entropy_gap  # d/d(log_alpha) of -log_alpha * (logp + target_entropy)
             alpha_updates, alpha_opt_state = self.alpha_tx.update(alpha_grad, state.alpha_opt_state)
@@ -297,11 +315,17 @@ class SAC:
             "losses/critic": critic_loss,
             "losses/actor": actor_loss,
             "losses/alpha": alpha,
-            "losses/entropy": -jnp.mean(logp),
+            "losses/entropy": -_weighted_mean(logp, live),
             "losses/q": jnp.mean(q),
             "losses/reward": jnp.mean(rews),
         }
         return new_state, metrics
+
+    def absorbing_value(self, reward_params: Any) -> jax.Array:
+        """Value ``()`` of the absorbing state, ``r(s_abs) / (1 - gamma)``: it loops on itself forever."""
+        s_abs = jnp.zeros((1, self.obs_dim), jnp.float32).at[:, -1].set(1.0)
+        loop = {"obs": s_abs, "next_obs": s_abs, "acts": jnp.zeros((1, self.act_dim)), "rews": jnp.zeros(1)}
+        return self.reward_fn(reward_params, loop)[0] / (1.0 - self.config.gamma)
 
     def _update_many(
         self, state: SACState, batches: Batch, reward_params: Any

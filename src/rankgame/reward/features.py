@@ -6,7 +6,10 @@ the absorbing state ``s_abs`` (all zeros with the absorbing flag set to 1) for t
 with a zero action. The SAC buffer stores the same transitions (``s_{T-1} -> s_abs``, then
 ``s_abs -> s_abs`` without a terminal mask), so the reward the ranking game learns for ``s_abs`` is
 exactly the reward the policy collects for terminating: early termination is neither free nor a
-trap, whatever the sign of the learned reward.
+trap, whatever the sign of the learned reward. SAC values the absorbing state at exactly
+``r(s_abs) / (1 - gamma)`` rather than bootstrapping its critic there (see
+:class:`rankgame.policy.sac.SAC`): a bootstrapped self-loop drifts towards the value of the real
+states and makes terminating look as good as surviving.
 
 Observation layout used everywhere in the game: ``[obs, flag]`` with ``flag`` 0 for real states.
 """
