@@ -39,31 +39,32 @@ def test_help_lists_commands_and_options(capsys: pytest.CaptureFixture[str]) -> 
     assert "--sac.batch-size" in out and "(default: 100)" in out and "Environment steps of SAC training" in out
 
 
+TOY_EXPERT_ARGS = (
+    "expert",
+    "--env",
+    "rankgame/PointGoal-v0",
+    "--eval-every",
+    "300",
+    "--checkpoint-every",
+    "300",
+    "--trajectories",
+    "3",
+    "--random-episodes",
+    "4",
+    "--sac.hidden-sizes",
+    "16",
+    "16",
+    "--sac.start-steps",
+    "200",
+    "--sac.update-after",
+    "200",
+    "--no-progress",
+)
+
+
 def test_expert_end_to_end_on_the_toy_task(tmp_path: Path) -> None:
     out = tmp_path / "expert"
-    result = run_cli(
-        "expert",
-        "--env",
-        "rankgame/PointGoal-v0",
-        "--steps",
-        "600",
-        "--eval-every",
-        "300",
-        "--out",
-        str(out),
-        "--trajectories",
-        "3",
-        "--random-episodes",
-        "4",
-        "--sac.hidden-sizes",
-        "16",
-        "16",
-        "--sac.start-steps",
-        "200",
-        "--sac.update-after",
-        "200",
-        "--no-progress",
-    )
+    result = run_cli(*TOY_EXPERT_ARGS, "--steps", "600", "--out", str(out))
     assert result.returncode == 0, result.stderr
     summary = json.loads(result.stdout)
     data = load_trajectories(out / "trajectories.npz", env_id="rankgame/PointGoal-v0")
@@ -130,3 +131,24 @@ def test_plot_draws_curves_and_rejects_bad_runs(tmp_path: Path) -> None:
     assert (tmp_path / "c.png").read_bytes()[:4] == b"\x89PNG"
     assert_one_line_error(run_cli("plot", str(run), "--column", "nope"), "has no column 'nope'")
     assert_one_line_error(run_cli("plot", str(tmp_path / "none")), "no metrics.csv")
+
+
+def test_expert_run_resumes_and_trains_longer(tmp_path: Path) -> None:
+    out = tmp_path / "expert"
+    assert run_cli(*TOY_EXPERT_ARGS, "--steps", "600", "--out", str(out)).returncode == 0
+    assert_one_line_error(run_cli(*TOY_EXPERT_ARGS, "--steps", "900", "--out", str(out)), "already holds a run")
+    changed = run_cli(*TOY_EXPERT_ARGS, "--steps", "900", "--out", str(out), "--resume", "--sac.gamma", "0.9")
+    assert_one_line_error(changed, "SAC settings differ")
+    resumed = run_cli(*TOY_EXPERT_ARGS, "--steps", "900", "--out", str(out), "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    steps = [row.split(",")[0] for row in (out / "metrics.csv").read_text().splitlines()[1:]]
+    assert steps == ["300", "600", "900"]
+    assert load_policy(out / "policy.msgpack").metadata["env_steps"] == 900
+    assert load_trajectories(out / "trajectories.npz").metadata["train_steps"] == 900
+    shorter = run_cli(*TOY_EXPERT_ARGS, "--steps", "300", "--out", str(out), "--resume")
+    assert_one_line_error(shorter, "--steps 300 is below the checkpoint's 900")
+
+
+def test_expert_resume_without_checkpoint_fails_cleanly(tmp_path: Path) -> None:
+    result = run_cli(*TOY_EXPERT_ARGS, "--steps", "600", "--out", str(tmp_path / "none"), "--resume")
+    assert_one_line_error(result, "no checkpoint to resume from")

@@ -3,7 +3,7 @@
 Writes into the output folder:
 ``policy.msgpack`` (last policy), ``best_policy.msgpack`` (best evaluation so far),
 ``trajectories.npz`` (episodes of the best policy, see :mod:`rankgame.data.trajectories`),
-``metrics.csv`` and ``tb/`` (TensorBoard).
+``metrics.csv`` and ``tb/`` (TensorBoard), ``checkpoint.npz`` (everything ``--resume`` needs).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ import jax
 import numpy as np
 from tqdm import tqdm
 
+from rankgame.checkpoint import load_checkpoint, save_checkpoint
 from rankgame.cli_args import config_to_json
 from rankgame.data.trajectories import save_trajectories
 from rankgame.envs.make import make_env
@@ -34,6 +35,7 @@ from rankgame.policy.sac import SACConfig
 EVAL_SEED_OFFSET = 10_000
 RECORD_SEED_OFFSET = 20_000
 RANDOM_SEED_OFFSET = 30_000
+CHECKPOINT_NAME = "checkpoint.npz"
 
 
 @dataclass(frozen=True)
@@ -56,6 +58,10 @@ class ExpertConfig:
     """Expert episodes to record at the end, from the best evaluated policy."""
     random_episodes: int = 100
     """Episodes of a uniformly random policy, to record the random return used for normalized scores."""
+    checkpoint_every: int = 50_000
+    """Environment steps between checkpoints (rounded up to evaluations)."""
+    resume: bool = False
+    """Continue the run in OUT from its last checkpoint (--steps may be raised to train longer)."""
     tensorboard: bool = True
     """Also write TensorBoard event files to OUT/tb."""
     progress: bool = True
@@ -64,8 +70,8 @@ class ExpertConfig:
 
     def validate(self) -> None:
         """Raise :class:`RankGameError` for values that make no sense."""
-        if self.steps <= 0 or self.eval_every <= 0 or self.eval_episodes <= 0:
-            raise RankGameError("--steps, --eval-every and --eval-episodes must be positive")
+        if min(self.steps, self.eval_every, self.eval_episodes, self.checkpoint_every) <= 0:
+            raise RankGameError("--steps, --eval-every, --eval-episodes and --checkpoint-every must be positive")
         if self.trajectories <= 0 or self.random_episodes <= 0:
             raise RankGameError("--trajectories and --random-episodes must be positive")
         try:
@@ -135,41 +141,72 @@ LOG_COLUMNS = (
 )
 
 
+@dataclass
+class _Progress:
+    """What the expert run carries from one evaluation to the next (saved in checkpoints)."""
+
+    best_return: float = -np.inf
+    best_step: int = 0
+    train_return: float = float("nan")
+    wall_s: float = 0.0
+    eval_s: float = 0.0
+
+
+def _restore(cfg: ExpertConfig, learner: SACLearner, path: Path) -> _Progress:
+    metadata, arrays = load_checkpoint(path)
+    saved = metadata["config"]
+    for key in ("env", "seed"):
+        if str(saved[key]) != str(getattr(cfg, key)):
+            raise RankGameError(f"--{key} {getattr(cfg, key)} differs from the checkpoint's {saved[key]}")
+    if saved["sac"] != config_to_json(cfg)["sac"]:
+        raise RankGameError("SAC settings differ from the checkpoint's; resume with the same --preset and --sac.*")
+    if cfg.steps < int(metadata["env_steps"]):
+        raise RankGameError(f"--steps {cfg.steps} is below the checkpoint's {metadata['env_steps']} steps")
+    learner.restore(metadata, arrays, seed=cfg.seed + int(metadata["env_steps"]))
+    return _Progress(**metadata["progress"])
+
+
 def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any]:
     """Train SAC on the environment reward, keep the best evaluated policy and record its episodes."""
     cfg.validate()
     out = Path(cfg.out)
+    ckpt = out / CHECKPOINT_NAME
     env = make_env(cfg.env)
     eval_env = make_env(cfg.env)
-    out.mkdir(parents=True, exist_ok=True)
     learner = SACLearner(env, cfg.sac, cfg.seed)
+    progress = _Progress()
+    if cfg.resume:
+        progress = _restore(cfg, learner, ckpt)
+    elif (out / "metrics.csv").exists() or ckpt.exists():
+        raise RankGameError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
+    start_step = learner.env_steps
+    out.mkdir(parents=True, exist_ok=True)
     spec = learner.spec
-    logger = RunLogger(out, LOG_COLUMNS, tensorboard=cfg.tensorboard)
+    logger = RunLogger(out, LOG_COLUMNS, tensorboard=cfg.tensorboard, resume_step=start_step if cfg.resume else None)
     command = command or " ".join(sys.argv)
     provenance = {"command": command, "seed": cfg.seed, "config": config_to_json(cfg)}
-    best_return, best_step = -np.inf, 0
-    train_return = float("nan")
     metrics: dict[str, float] = {}
-    start = time.perf_counter()
-    eval_seconds = 0.0
-    bar = tqdm(total=cfg.steps, disable=not cfg.progress, unit="step", dynamic_ncols=True, desc=cfg.env)
-    for step in range(1, cfg.steps + 1):
+    start = time.perf_counter() - progress.wall_s
+    bar = tqdm(
+        total=cfg.steps, initial=start_step, disable=not cfg.progress, unit="step", dynamic_ncols=True, desc=cfg.env
+    )
+    for step in range(start_step + 1, cfg.steps + 1):
         result = learner.env_step()
         if result.episode_return is not None:
-            train_return = result.episode_return
+            progress.train_return = result.episode_return
         metrics = learner.maybe_update() or metrics
         bar.update(1)
         if step % cfg.eval_every == 0 or step == cfg.steps:
             eval_start = time.perf_counter()
             returns = episode_returns(eval_env, learner.policy(), cfg.eval_episodes, cfg.seed + EVAL_SEED_OFFSET)
-            eval_seconds += time.perf_counter() - eval_start
-            wall = time.perf_counter() - start
+            progress.eval_s += time.perf_counter() - eval_start
+            progress.wall_s = time.perf_counter() - start
             logger.log(
                 {
                     "env_steps": step,
-                    "wall_s": wall,
-                    "steps_per_s": step / max(wall - eval_seconds, 1e-9),
-                    "train_return": train_return,
+                    "wall_s": progress.wall_s,
+                    "steps_per_s": step / max(progress.wall_s - progress.eval_s, 1e-9),
+                    "train_return": progress.train_return,
                     "eval_return": float(returns.mean()),
                     "eval_return_std": float(returns.std()),
                     **metrics,
@@ -180,8 +217,8 @@ def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any
             save_policy(
                 out / "policy.msgpack", learner.sac, params, cfg.env, spec.act_low, spec.act_high, **policy_meta
             )
-            if returns.mean() > best_return:
-                best_return, best_step = float(returns.mean()), step
+            if returns.mean() > progress.best_return:
+                progress.best_return, progress.best_step = float(returns.mean()), step
                 save_policy(
                     out / "best_policy.msgpack",
                     learner.sac,
@@ -191,7 +228,11 @@ def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any
                     spec.act_high,
                     **policy_meta,
                 )
-            bar.set_postfix(eval=f"{returns.mean():.0f}", best=f"{best_return:.0f}")
+            bar.set_postfix(eval=f"{returns.mean():.0f}", best=f"{progress.best_return:.0f}")
+            if step % cfg.checkpoint_every < cfg.eval_every or step == cfg.steps:
+                learner_meta, arrays = learner.checkpoint()
+                metadata = {**learner_meta, "config": config_to_json(cfg), "progress": vars(progress)}
+                save_checkpoint(ckpt, metadata, arrays)
     bar.close()
     logger.close()
     summary = record_expert(
@@ -203,6 +244,6 @@ def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any
         command=command,
         train_seed=cfg.seed,
         train_steps=cfg.steps,
-        best_step=best_step,
+        best_step=progress.best_step,
     )
-    return {"env": cfg.env, "best_eval_return": best_return, "best_step": best_step, **summary}
+    return {"env": cfg.env, "best_eval_return": progress.best_return, "best_step": progress.best_step, **summary}

@@ -3,16 +3,21 @@
 from __future__ import annotations
 
 import csv
+import io
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+
+from rankgame.atomic import atomic_write_bytes
 
 
 class RunLogger:
     """Append rows of scalar metrics to ``DIR/metrics.csv`` and TensorBoard (``DIR/tb``).
 
     Columns are fixed when the logger is made; a row may leave some empty. Rows are flushed as they
-    are written, so a killed run leaves only whole rows behind.
+    are written, so a killed run leaves only whole rows behind. ``resume_step`` continues a run from
+    its checkpoint at that step: CSV rows after it are dropped (they will be logged again) and
+    TensorBoard purges its events after it, so no row is duplicated or missing.
     """
 
     def __init__(
@@ -21,11 +26,13 @@ class RunLogger:
         columns: Sequence[str],
         tensorboard: bool = True,
         step_key: str = "env_steps",
-        purge_step: int | None = None,
+        resume_step: int | None = None,
     ):
         self.path = Path(out_dir) / "metrics.csv"
         self.columns = list(columns)
         self.step_key = step_key
+        if resume_step is not None:
+            trim_metrics(self.path, resume_step)
         new_file = not self.path.exists() or self.path.stat().st_size == 0
         self._file = self.path.open("a", newline="")
         self._writer = csv.DictWriter(self._file, fieldnames=self.columns, extrasaction="ignore")
@@ -36,8 +43,7 @@ class RunLogger:
         if tensorboard:
             from tensorboardX import SummaryWriter
 
-            # purge_step makes TensorBoard drop events a resumed run logs again.
-            self._tb = SummaryWriter(str(Path(out_dir) / "tb"), purge_step=purge_step)
+            self._tb = SummaryWriter(str(Path(out_dir) / "tb"), purge_step=resume_step)
 
     def log(self, row: Mapping[str, float | int]) -> None:
         """Write one row; keys outside the columns go to TensorBoard only."""
@@ -53,6 +59,20 @@ class RunLogger:
         self._file.close()
         if self._tb is not None:
             self._tb.close()
+
+
+def trim_metrics(path: Path, last_step: int) -> None:
+    """Atomically keep only the header and the rows of ``path`` whose first column is <= ``last_step``."""
+    if not path.exists():
+        return
+    with path.open(newline="") as handle:
+        rows = list(csv.reader(handle))
+    if not rows:
+        return
+    kept = [rows[0]] + [row for row in rows[1:] if row and row[0].isdigit() and int(row[0]) <= last_step]
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\n").writerows(kept)
+    atomic_write_bytes(path, buffer.getvalue().encode())
 
 
 def _fmt(value: float | int) -> str | int:

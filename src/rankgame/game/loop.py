@@ -9,8 +9,6 @@ the reward player keeps and how long it trains.
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import shlex
 import sys
@@ -23,7 +21,6 @@ import jax
 import numpy as np
 from tqdm import tqdm
 
-from rankgame.atomic import atomic_write_bytes
 from rankgame.checkpoint import flatten_tree, load_checkpoint, save_checkpoint, unflatten_tree
 from rankgame.cli_args import config_to_json
 from rankgame.data.experts import normalized_score, shipped_expert_path
@@ -292,27 +289,14 @@ class RankingGame:
         for key in ("env", "method", "setting", "seed"):
             if str(saved_cfg[key]) != str(getattr(self.cfg, key)):
                 raise RankGameError(f"--{key} {getattr(self.cfg, key)} differs from the checkpoint's {saved_cfg[key]}")
+        if self.cfg.steps < int(metadata["env_steps"]):
+            raise RankGameError(f"--steps {self.cfg.steps} is below the checkpoint's {metadata['env_steps']} steps")
         self.learner.restore(metadata, arrays, seed=self.cfg.seed + int(metadata["env_steps"]))
         self.reward_state = unflatten_tree("reward", arrays, self.reward_state)
         self.data.load_state_dict(arrays)
         self.rng.bit_generator.state = metadata["game_rng"]
         self.reward_metrics = metadata["reward_metrics"]
         return metadata
-
-
-def _trim_metrics(out: Path, last_step: int) -> None:
-    """Keep only metrics rows up to the checkpoint, so a resumed run repeats and misses no row."""
-    path = out / "metrics.csv"
-    if not path.exists():
-        return
-    with path.open(newline="") as handle:
-        rows = list(csv.reader(handle))
-    if not rows:
-        return
-    kept = [rows[0]] + [row for row in rows[1:] if row and row[0].isdigit() and int(row[0]) <= last_step]
-    buffer = io.StringIO()
-    csv.writer(buffer, lineterminator="\n").writerows(kept)
-    atomic_write_bytes(path, buffer.getvalue().encode())
 
 
 def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
@@ -324,14 +308,13 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
     if cfg.resume:
         meta = game.restore(ckpt)
         elapsed = float(meta["wall_s"])
-        _trim_metrics(out, game.learner.env_steps)
     elif (out / "metrics.csv").exists() or ckpt.exists():
         raise RankGameError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
     out.mkdir(parents=True, exist_ok=True)
     command = command or shlex.join(sys.argv)
     (out / "config.json").write_text(json.dumps({"command": command, **config_to_json(cfg)}, indent=2))
     logger = RunLogger(
-        out, LOG_COLUMNS, tensorboard=cfg.tensorboard, purge_step=game.learner.env_steps if cfg.resume else None
+        out, LOG_COLUMNS, tensorboard=cfg.tensorboard, resume_step=game.learner.env_steps if cfg.resume else None
     )
     start_step = game.learner.env_steps
     start = time.perf_counter() - elapsed
