@@ -260,7 +260,7 @@ class RankingGame:
     def _mean_real_reward(self, inputs: np.ndarray) -> float:
         """Mean learned reward ``()`` over the inputs ``(N, d)`` that are real states, not absorbing ones."""
         real = inputs[inputs[:, self.learner.spec.obs_dim] == 0.0]
-        return float(self.player.reward(self.reward_state.params, real).mean()) if len(real) else float("nan")
+        return self.player.mean_reward(self.reward_state.params, real) if len(real) else float("nan")
 
     def evaluate(self) -> tuple[float, float]:
         """Mean true return of the deterministic policy and its normalized score."""

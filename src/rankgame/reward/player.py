@@ -93,6 +93,7 @@ class RewardPlayer:
         self.tx = optax.chain(optax.add_decayed_weights(config.weight_decay), optax.adam(config.lr))
         self._update = jax.jit(self._update_many, donate_argnums=(0,))
         self._eval = jax.jit(self._loss_value)
+        self._mean_reward = jax.jit(self._weighted_mean_reward)
 
     def init(self, key: jax.Array) -> RewardState:
         params = self.net.init(key, jnp.zeros((1, self.feature_dim), jnp.float32))
@@ -105,6 +106,14 @@ class RewardPlayer:
     def reward_fn(self, params: Any, batch: Batch) -> jax.Array:
         """The reward function handed to SAC: relabels a batch ``(B,)`` with the current reward."""
         return self.reward(params, batch_features(batch, self.reward_input))
+
+    def _weighted_mean_reward(self, params: Any, features: jax.Array, weights: jax.Array) -> jax.Array:
+        return jnp.sum(self.reward(params, features) * weights) / jnp.sum(weights)
+
+    def mean_reward(self, params: Any, features: np.ndarray) -> float:
+        """Mean bounded reward ``()`` over inputs ``(N, d)``, N > 0 (jitted; padded to few shapes)."""
+        (padded,), weights = _pad_to_power_of_two([features])
+        return float(self._mean_reward(params, padded, weights))
 
     def _loss(self, params: Any, inputs: jax.Array, targets: jax.Array, is_expert: jax.Array, weights: jax.Array):
         raw = self.net.apply(params, inputs)
@@ -143,11 +152,7 @@ class RewardPlayer:
         inputs, targets, is_expert = data.holdout(HOLDOUT_MAX_ROWS)
         if len(inputs) == 0:
             return None
-        pad = (1 << (len(inputs) - 1).bit_length()) - len(inputs)
-        weights = np.concatenate([np.ones(len(inputs), np.float32), np.zeros(pad, np.float32)])
-        inputs = np.concatenate([inputs, np.zeros((pad, inputs.shape[1]), np.float32)])
-        targets = np.concatenate([targets, np.zeros(pad, np.float32)])
-        is_expert = np.concatenate([is_expert, np.zeros(pad, np.float32)])
+        (inputs, targets, is_expert), weights = _pad_to_power_of_two([inputs, targets, is_expert])
         return tuple(jnp.asarray(x) for x in (inputs, targets, is_expert, weights))
 
     def holdout_loss(self, params: Any, data: RankingData) -> float:
@@ -191,3 +196,13 @@ class RewardPlayer:
             "reward/holdout_loss": best_loss,
             "reward/epochs": float(epochs),
         }
+
+
+def _pad_to_power_of_two(arrays: list[np.ndarray]) -> tuple[list[np.ndarray], np.ndarray]:
+    """Zero-pad arrays of equal leading size N > 0 to the next power of two, so that jitted functions
+    see few distinct shapes; returns the padded arrays and weights ``(N_padded,)`` (1 real, 0 padding)."""
+    n = len(arrays[0])
+    pad = (1 << (n - 1).bit_length()) - n
+    padded = [np.concatenate([a, np.zeros((pad, *a.shape[1:]), a.dtype)]) for a in arrays]
+    weights = np.concatenate([np.ones(n, np.float32), np.zeros(pad, np.float32)])
+    return padded, weights
