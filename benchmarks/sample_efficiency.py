@@ -1,7 +1,7 @@
 """Normalized score of ranking-game methods at fixed step budgets, over seeds and tasks.
 
 Launches ``rankgame train`` for every (env, method, seed) not already finished under ``--root``,
-two at a time, each pinned to its own core (the fastest way to use a 2-core machine), then prints
+one per core of ``--cores``, each pinned to its core (the fastest way to use a 2-core machine), then prints
 the mean and standard deviation across seeds of the normalized score at each checkpoint step
 (``--at``), as JSON and as a Markdown table, beside the authors' released RANK-PAL(auto) curves.
 
@@ -18,6 +18,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +38,7 @@ def run_dir(root: Path, env: str, method: str, seed: int) -> Path:
 
 
 def launch_all(args: argparse.Namespace) -> None:
-    """Run the missing trainings, two pinned single-core processes at a time."""
+    """Run the missing trainings, one single-core process pinned to each of ``--cores``."""
     jobs = [
         (env, method, seed)
         for env in args.envs
@@ -45,20 +46,27 @@ def launch_all(args: argparse.Namespace) -> None:
         for seed in args.seeds
         if not (run_dir(args.root, env, method, seed) / "policy.msgpack").exists()
     ]
-    running: list[subprocess.Popen] = []
-    for i, (env, method, seed) in enumerate(jobs):
+    running: dict[str, subprocess.Popen] = {}  # core -> process
+    for env, method, seed in jobs:
         out = run_dir(args.root, env, method, seed)
         cmd = [sys.executable, "-m", "rankgame.cli", "train", "--env", env, "--method", method, "--seed", str(seed)]
         cmd += ["--steps", str(args.steps), "--out", str(out), "--no-progress"]
         cmd += ["--resume"] if (out / "checkpoint.npz").exists() else []
-        core = str(i % 2)
-        if len(running) == 2:
-            running.pop(0).wait()
+        core = _free_core(running, args.cores)
         out.parent.mkdir(parents=True, exist_ok=True)
         log = open(f"{out}.log", "a")  # noqa: SIM115  (closed when the process ends)
-        running.append(subprocess.Popen(["taskset", "-c", core, *cmd], stdout=log, stderr=log, env=os.environ))
-    for proc in running:
+        running[core] = subprocess.Popen(["taskset", "-c", core, *cmd], stdout=log, stderr=log, env=os.environ)
+    for proc in running.values():
         proc.wait()
+
+
+def _free_core(running: dict[str, subprocess.Popen], cores: list[str]) -> str:
+    """A core with no run on it, waiting for one to finish if all are busy."""
+    while True:
+        for core in cores:
+            if core not in running or running[core].poll() is not None:
+                return core
+        time.sleep(5)
 
 
 def score_at(out: Path, step: int) -> float | None:
@@ -100,6 +108,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=300_000)
     parser.add_argument("--at", nargs="+", type=int, default=[100_000, 300_000])
     parser.add_argument("--root", type=Path, default=Path("runs/sample-efficiency"))
+    parser.add_argument("--cores", nargs="+", default=["0", "1"], help="CPU cores to pin one run each to")
     parser.add_argument("--summarize-only", action="store_true")
     args = parser.parse_args()
     if not args.summarize_only:
