@@ -5,6 +5,10 @@ one per core of ``--cores``, each pinned to its core (the fastest way to use a 2
 the mean and standard deviation across seeds of the normalized score at each checkpoint step
 (``--at``), as JSON and as a Markdown table, beside the authors' released RANK-PAL(auto) curves.
 
+Each finished run's ``metrics.csv`` and ``config.json`` are copied to ``--archive`` (by default
+``benchmarks/results/sample-efficiency``, kept in the repository), so the table can be rebuilt, and
+runs are not repeated, without the run folders (which hold large checkpoints).
+
     python benchmarks/sample_efficiency.py --envs Hopper-v5 HalfCheetah-v5 Walker2d-v5 \
         --methods rank-pal-auto rank-ral-auto --seeds 0 1 2 --steps 300000 --root runs/sample-eff
     python benchmarks/sample_efficiency.py --summarize-only --root runs/sample-eff ...
@@ -16,6 +20,7 @@ import argparse
 import csv
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -37,41 +42,65 @@ def run_dir(root: Path, env: str, method: str, seed: int) -> Path:
     return root / f"{env}__{method}__s{seed}"
 
 
+def finished(out: Path, archived: Path) -> bool:
+    """Whether the run in ``out`` (or its archived copy) has written its final policy."""
+    return (out / "policy.msgpack").exists() or (archived / "metrics.csv").exists()
+
+
+def archive_run(out: Path, archived: Path) -> None:
+    """Copy a finished run's ``metrics.csv`` and ``config.json`` to ``archived``."""
+    archived.mkdir(parents=True, exist_ok=True)
+    for name in ("metrics.csv", "config.json"):
+        shutil.copyfile(out / name, archived / name)
+
+
 def launch_all(args: argparse.Namespace) -> None:
     """Run the missing trainings, one single-core process pinned to each of ``--cores``."""
-    jobs = [
-        (env, method, seed)
-        for env in args.envs
-        for method in args.methods
-        for seed in args.seeds
-        if not (run_dir(args.root, env, method, seed) / "policy.msgpack").exists()
-    ]
-    running: dict[str, subprocess.Popen] = {}  # core -> process
-    for env, method, seed in jobs:
-        out = run_dir(args.root, env, method, seed)
+    jobs = []
+    for env in args.envs:
+        for method in args.methods:
+            for seed in args.seeds:
+                out, archived = run_dir(args.root, env, method, seed), run_dir(args.archive, env, method, seed)
+                if not finished(out, archived):
+                    jobs.append((out, archived, env, method, seed))
+                elif not (archived / "metrics.csv").exists():
+                    archive_run(out, archived)
+    running: dict[str, tuple[subprocess.Popen, Path, Path]] = {}  # core -> (process, run folder, archive)
+    for out, archived, env, method, seed in jobs:
         cmd = [sys.executable, "-m", "rankgame.cli", "train", "--env", env, "--method", method, "--seed", str(seed)]
         cmd += ["--steps", str(args.steps), "--out", str(out), "--no-progress"]
         cmd += ["--resume"] if (out / "checkpoint.npz").exists() else []
         core = _free_core(running, args.cores)
         out.parent.mkdir(parents=True, exist_ok=True)
         log = open(f"{out}.log", "a")  # noqa: SIM115  (closed when the process ends)
-        running[core] = subprocess.Popen(["taskset", "-c", core, *cmd], stdout=log, stderr=log, env=os.environ)
-    for proc in running.values():
-        proc.wait()
+        proc = subprocess.Popen(["taskset", "-c", core, *cmd], stdout=log, stderr=log, env=os.environ)
+        running[core] = (proc, out, archived)
+    for core in list(running):
+        _wait_and_archive(*running.pop(core))
 
 
-def _free_core(running: dict[str, subprocess.Popen], cores: list[str]) -> str:
-    """A core with no run on it, waiting for one to finish if all are busy."""
+def _free_core(running: dict[str, tuple[subprocess.Popen, Path, Path]], cores: list[str]) -> str:
+    """A core with no run on it, waiting for one to finish (and archiving it) if all are busy."""
     while True:
         for core in cores:
-            if core not in running or running[core].poll() is not None:
+            if core not in running:
+                return core
+            if running[core][0].poll() is not None:
+                _wait_and_archive(*running.pop(core))
                 return core
         time.sleep(5)
 
 
-def score_at(out: Path, step: int) -> float | None:
-    """Normalized score logged at ``step`` (NaN-free), or None if the run has not got there."""
+def _wait_and_archive(proc: subprocess.Popen, out: Path, archived: Path) -> None:
+    if proc.wait() == 0 and (out / "policy.msgpack").exists():
+        archive_run(out, archived)
+
+
+def score_at(out: Path, archived: Path, step: int) -> float | None:
+    """Normalized score logged at ``step`` by the run (or its archived copy), or None if not got there."""
     path = out / "metrics.csv"
+    if not path.exists():
+        path = archived / "metrics.csv"
     if not path.exists():
         return None
     with path.open() as handle:
@@ -86,7 +115,8 @@ def summarize(args: argparse.Namespace) -> dict:
     for env in args.envs:
         for method in args.methods:
             for step in args.at:
-                scores = [score_at(run_dir(args.root, env, method, s), step) for s in args.seeds]
+                runs = [(run_dir(args.root, env, method, s), run_dir(args.archive, env, method, s)) for s in args.seeds]
+                scores = [score_at(out, archived, step) for out, archived in runs]
                 scores = [s for s in scores if s is not None]
                 table[f"{env} {method} {step}"] = {
                     "env": env,
@@ -108,6 +138,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=300_000)
     parser.add_argument("--at", nargs="+", type=int, default=[100_000, 300_000])
     parser.add_argument("--root", type=Path, default=Path("runs/sample-efficiency"))
+    parser.add_argument("--archive", type=Path, default=Path("benchmarks/results/sample-efficiency"))
     parser.add_argument("--cores", nargs="+", default=["0", "1"], help="CPU cores to pin one run each to")
     parser.add_argument("--summarize-only", action="store_true")
     args = parser.parse_args()
