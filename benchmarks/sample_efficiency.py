@@ -42,16 +42,12 @@ def run_dir(root: Path, env: str, method: str, seed: int) -> Path:
     return root / f"{env}__{method}__s{seed}"
 
 
-def finished(out: Path, archived: Path) -> bool:
-    """Whether the run in ``out`` (or its archived copy) has written its final policy."""
-    return (out / "policy.msgpack").exists() or (archived / "metrics.csv").exists()
-
-
-def archive_run(out: Path, archived: Path) -> None:
-    """Copy a finished run's ``metrics.csv`` and ``config.json`` to ``archived``."""
-    archived.mkdir(parents=True, exist_ok=True)
-    for name in ("metrics.csv", "config.json"):
-        shutil.copyfile(out / name, archived / name)
+def archive_if_finished(out: Path, archived: Path) -> None:
+    """Copy the ``metrics.csv`` and ``config.json`` of a run that wrote its final policy to ``archived``."""
+    if (out / "policy.msgpack").exists() and not (archived / "metrics.csv").exists():
+        archived.mkdir(parents=True, exist_ok=True)
+        for name in ("metrics.csv", "config.json"):
+            shutil.copyfile(out / name, archived / name)
 
 
 def launch_all(args: argparse.Namespace) -> None:
@@ -61,10 +57,9 @@ def launch_all(args: argparse.Namespace) -> None:
         for method in args.methods:
             for seed in args.seeds:
                 out, archived = run_dir(args.root, env, method, seed), run_dir(args.archive, env, method, seed)
-                if not finished(out, archived):
+                archive_if_finished(out, archived)
+                if not (archived / "metrics.csv").exists():
                     jobs.append((out, archived, env, method, seed))
-                elif not (archived / "metrics.csv").exists():
-                    archive_run(out, archived)
     running: dict[str, tuple[subprocess.Popen, Path, Path]] = {}  # core -> (process, run folder, archive)
     for out, archived, env, method, seed in jobs:
         cmd = [sys.executable, "-m", "rankgame.cli", "train", "--env", env, "--method", method, "--seed", str(seed)]
@@ -92,8 +87,8 @@ def _free_core(running: dict[str, tuple[subprocess.Popen, Path, Path]], cores: l
 
 
 def _wait_and_archive(proc: subprocess.Popen, out: Path, archived: Path) -> None:
-    if proc.wait() == 0 and (out / "policy.msgpack").exists():
-        archive_run(out, archived)
+    proc.wait()
+    archive_if_finished(out, archived)
 
 
 def score_at(out: Path, archived: Path, step: int) -> float | None:
