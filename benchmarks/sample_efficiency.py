@@ -91,38 +91,66 @@ def _wait_and_archive(proc: subprocess.Popen, out: Path, archived: Path) -> None
     archive_if_finished(out, archived)
 
 
-def score_at(out: Path, archived: Path, step: int) -> float | None:
-    """Normalized score logged at ``step`` by the run (or its archived copy), or None if not got there."""
+def read_scores(out: Path, archived: Path) -> dict[int, float]:
+    """Normalized score by evaluation step of a run (its folder, else its archived copy); empty if none."""
     path = out / "metrics.csv"
     if not path.exists():
         path = archived / "metrics.csv"
     if not path.exists():
-        return None
+        return {}
     with path.open() as handle:
-        for row in csv.DictReader(handle):
-            if int(row["env_steps"]) == step:
-                return float(row["normalized_score"])
-    return None
+        return {int(row["env_steps"]): float(row["normalized_score"]) for row in csv.DictReader(handle)}
 
 
-def summarize(args: argparse.Namespace) -> dict:
-    table = {}
+def summarize(args: argparse.Namespace) -> list[dict]:
+    """Mean and standard deviation over the seeds of the score at each ``--at`` step."""
+    table = []
     for env in args.envs:
         for method in args.methods:
+            runs = [
+                read_scores(run_dir(args.root, env, method, s), run_dir(args.archive, env, method, s))
+                for s in args.seeds
+            ]
             for step in args.at:
-                runs = [(run_dir(args.root, env, method, s), run_dir(args.archive, env, method, s)) for s in args.seeds]
-                scores = [score_at(out, archived, step) for out, archived in runs]
-                scores = [s for s in scores if s is not None]
-                table[f"{env} {method} {step}"] = {
-                    "env": env,
-                    "method": method,
-                    "step": step,
-                    "seeds": len(scores),
-                    "mean": round(float(np.mean(scores)), 1) if scores else None,
-                    "std": round(float(np.std(scores)), 1) if scores else None,
-                    "published_rank_pal_auto": PUBLISHED.get(env, {}).get(step),
-                }
+                scores = [run[step] for run in runs if step in run]
+                table.append(
+                    {
+                        "env": env,
+                        "method": method,
+                        "step": step,
+                        "seeds": len(scores),
+                        "mean": round(float(np.mean(scores)), 1) if scores else None,
+                        "std": round(float(np.std(scores)), 1) if scores else None,
+                        "published_rank_pal_auto": PUBLISHED.get(env, {}).get(step),
+                    }
+                )
     return table
+
+
+def per_run(args: argparse.Namespace) -> list[dict]:
+    """For every finished run: the first step whose score reaches ``--threshold``, and the median, minimum
+    and maximum of the evaluations in the second half of the run (how steady the imitation stays)."""
+    rows = []
+    for env in args.envs:
+        for method in args.methods:
+            for seed in args.seeds:
+                scores = read_scores(run_dir(args.root, env, method, seed), run_dir(args.archive, env, method, seed))
+                if max(scores, default=0) < args.steps:
+                    continue
+                late = [score for step, score in scores.items() if step >= args.steps // 2]
+                reached = [step for step, score in sorted(scores.items()) if score >= args.threshold]
+                rows.append(
+                    {
+                        "env": env,
+                        "method": method,
+                        "seed": seed,
+                        "first_step_at_threshold": reached[0] if reached else None,
+                        "late_median": round(float(np.median(late)), 1),
+                        "late_min": round(min(late), 1),
+                        "late_max": round(max(late), 1),
+                    }
+                )
+    return rows
 
 
 def main() -> None:
@@ -132,6 +160,7 @@ def main() -> None:
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     parser.add_argument("--steps", type=int, default=300_000)
     parser.add_argument("--at", nargs="+", type=int, default=[100_000, 300_000])
+    parser.add_argument("--threshold", type=float, default=80.0, help="score whose first crossing is reported")
     parser.add_argument("--root", type=Path, default=Path("runs/sample-efficiency"))
     parser.add_argument("--archive", type=Path, default=Path("benchmarks/results/sample-efficiency"))
     parser.add_argument("--cores", nargs="+", default=["0", "1"], help="CPU cores to pin one run each to")
@@ -139,16 +168,23 @@ def main() -> None:
     args = parser.parse_args()
     if not args.summarize_only:
         launch_all(args)
-    table = summarize(args)
-    print(json.dumps(list(table.values())))
+    table, runs = summarize(args), per_run(args)
+    print(json.dumps({"at_steps": table, "runs": runs}))
     print("\n| env | method | steps | seeds | normalized score | published RANK-PAL(auto) |")
     print("| --- | --- | --- | --- | --- | --- |")
-    for row in table.values():
+    for row in table:
         score = "-" if row["mean"] is None else f"{row['mean']} ± {row['std']}"
         print(
             f"| {row['env']} | {row['method']} | {row['step']} | {row['seeds']} | {score} | "
             f"{row['published_rank_pal_auto'] or '-'} |"
         )
+    half = f"{args.steps // 2000}k-{args.steps // 1000}k"
+    print(f"\n| env | method | seed | first step at >= {args.threshold:g} | median / min / max over {half} |")
+    print("| --- | --- | --- | --- | --- |")
+    for row in runs:
+        first = "never" if row["first_step_at_threshold"] is None else f"{row['first_step_at_threshold'] // 1000}k"
+        spread = f"{row['late_median']} / {row['late_min']} / {row['late_max']}"
+        print(f"| {row['env']} | {row['method']} | {row['seed']} | {first} | {spread} |")
 
 
 if __name__ == "__main__":
