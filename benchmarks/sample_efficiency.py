@@ -64,7 +64,7 @@ def launch_all(args: argparse.Namespace) -> None:
     for out, archived, env, method, seed in jobs:
         cmd = [sys.executable, "-m", "rankgame.cli", "train", "--env", env, "--method", method, "--seed", str(seed)]
         cmd += ["--steps", str(args.steps), "--out", str(out), "--no-progress"]
-        cmd += ["--resume"] if (out / "checkpoint.npz").exists() else []
+        cmd += ["--resume"] if (out / "metrics.csv").exists() else []  # continues, or restarts a run with no checkpoint
         core = _free_core(running, args.cores)
         out.parent.mkdir(parents=True, exist_ok=True)
         log = open(f"{out}.log", "a")  # noqa: SIM115  (closed when the process ends)

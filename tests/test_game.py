@@ -84,6 +84,21 @@ def test_resume_after_kill_9_leaves_a_clean_metrics_file(toy_expert_file: Path, 
     assert steps == list(range(200, 2401, 200))  # every evaluation once, none repeated or missing
 
 
+def test_a_run_killed_before_its_first_checkpoint_resumes_from_step_0(toy_expert_file: Path, tmp_path: Path) -> None:
+    out = tmp_path / "early"
+    first = _train_cmd(out, toy_expert_file, "--checkpoint-every", "2400")
+    proc = subprocess.Popen(first, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 240
+    while time.time() < deadline and not ((out / "metrics.csv").exists() and len(_rows(out)) >= 2):
+        time.sleep(0.2)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not (out / "checkpoint.npz").exists() and len(_rows(out)) >= 2
+    resumed = subprocess.run(_train_cmd(out, toy_expert_file, "--resume"), capture_output=True, text=True, timeout=300)
+    assert resumed.returncode == 0 and "starting it again at step 0" in resumed.stderr, resumed.stderr
+    assert [int(row["env_steps"]) for row in _rows(out)] == list(range(200, 2401, 200))
+
+
 def test_an_existing_run_is_not_overwritten(toy_expert_file: Path, tmp_path: Path) -> None:
     out = tmp_path / "once"
     out.mkdir()

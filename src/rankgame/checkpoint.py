@@ -7,6 +7,7 @@ never a half-written file.
 from __future__ import annotations
 
 import json
+import sys
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -16,6 +17,9 @@ import numpy as np
 
 from rankgame.atomic import atomic_write
 from rankgame.errors import RankGameError
+
+#: File name of a run's checkpoint inside its output folder.
+CHECKPOINT_NAME = "checkpoint.npz"
 
 
 def _is_key(leaf: Any) -> bool:
@@ -62,3 +66,25 @@ def load_checkpoint(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as exc:
         raise RankGameError(f"{path}: unreadable checkpoint ({exc})") from None
     return metadata, arrays
+
+
+def checkpoint_to_resume(out: Path, resume: bool) -> Path | None:
+    """The checkpoint a run in ``out`` continues from, or None when it starts at step 0.
+
+    Without ``resume`` a folder that already holds a run is refused. With it, the run continues from
+    its checkpoint; a run stopped before it wrote its first checkpoint has nothing to continue from and
+    starts again at step 0 (its logged rows are dropped by the logger). A folder with no run in it is
+    refused, since ``--resume`` there most likely names the wrong folder.
+    """
+    ckpt = out / CHECKPOINT_NAME
+    started = (out / "metrics.csv").exists()
+    if not resume:
+        if started or ckpt.exists():
+            raise RankGameError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
+        return None
+    if ckpt.exists():
+        return ckpt
+    if started:
+        print(f"{out}: the run stopped before its first checkpoint; starting it again at step 0", file=sys.stderr)
+        return None
+    raise RankGameError(f"no checkpoint to resume from at {ckpt}")

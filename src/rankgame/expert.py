@@ -20,7 +20,7 @@ import jax
 import numpy as np
 from tqdm import tqdm
 
-from rankgame.checkpoint import load_checkpoint, save_checkpoint
+from rankgame.checkpoint import CHECKPOINT_NAME, checkpoint_to_resume, load_checkpoint, save_checkpoint
 from rankgame.cli_args import config_to_json
 from rankgame.data.trajectories import save_trajectories
 from rankgame.envs.make import make_env
@@ -35,7 +35,6 @@ from rankgame.policy.sac import SACConfig
 EVAL_SEED_OFFSET = 10_000
 RECORD_SEED_OFFSET = 20_000
 RANDOM_SEED_OFFSET = 30_000
-CHECKPOINT_NAME = "checkpoint.npz"
 
 
 @dataclass(frozen=True)
@@ -175,10 +174,8 @@ def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any
     eval_env = make_env(cfg.env)
     learner = SACLearner(env, cfg.sac, cfg.seed)
     progress = _Progress()
-    if cfg.resume:
+    if checkpoint_to_resume(out, cfg.resume) is not None:
         progress = _restore(cfg, learner, ckpt)
-    elif (out / "metrics.csv").exists() or ckpt.exists():
-        raise RankGameError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
     start_step = learner.env_steps
     out.mkdir(parents=True, exist_ok=True)
     spec = learner.spec

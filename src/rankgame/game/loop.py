@@ -21,7 +21,14 @@ import jax
 import numpy as np
 from tqdm import tqdm
 
-from rankgame.checkpoint import flatten_tree, load_checkpoint, save_checkpoint, unflatten_tree
+from rankgame.checkpoint import (
+    CHECKPOINT_NAME,
+    checkpoint_to_resume,
+    flatten_tree,
+    load_checkpoint,
+    save_checkpoint,
+    unflatten_tree,
+)
 from rankgame.cli_args import config_to_json
 from rankgame.data.experts import normalized_score, shipped_expert_path
 from rankgame.data.trajectories import TrajectoryFile, load_trajectories
@@ -41,7 +48,6 @@ from rankgame.reward.ranking_data import RankingData
 from rankgame.reward.targets import Schedule, lambda_grid, target_schedule
 
 EVAL_SEED_OFFSET = 10_000
-CHECKPOINT_NAME = "checkpoint.npz"
 
 
 @dataclass(frozen=True)
@@ -305,11 +311,8 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
     out = Path(cfg.out)
     ckpt = out / CHECKPOINT_NAME
     elapsed = 0.0
-    if cfg.resume:
-        meta = game.restore(ckpt)
-        elapsed = float(meta["wall_s"])
-    elif (out / "metrics.csv").exists() or ckpt.exists():
-        raise RankGameError(f"{out} already holds a run; pass --resume to continue it or choose another --out")
+    if checkpoint_to_resume(out, cfg.resume) is not None:
+        elapsed = float(game.restore(ckpt)["wall_s"])
     out.mkdir(parents=True, exist_ok=True)
     command = command or shlex.join(sys.argv)
     (out / "config.json").write_text(json.dumps({"command": command, **config_to_json(cfg)}, indent=2))
