@@ -60,7 +60,8 @@ class ExpertConfig:
     checkpoint_every: int = 50_000
     """Environment steps between checkpoints (rounded up to evaluations)."""
     resume: bool = False
-    """Continue the run in OUT from its last checkpoint (--steps may be raised to train longer)."""
+    """Continue the run in OUT from its last checkpoint, or from step 0 if it stopped before its first one
+    (--steps may be raised to train longer)."""
     tensorboard: bool = True
     """Also write TensorBoard event files to OUT/tb."""
     progress: bool = True

@@ -93,7 +93,7 @@ class TrainConfig:
     checkpoint_every: int = 20_000
     """Environment steps between checkpoints (rounded to whole iterations)."""
     resume: bool = False
-    """Continue the run in OUT from its last checkpoint."""
+    """Continue the run in OUT from its last checkpoint, or from step 0 if it stopped before its first one."""
     tensorboard: bool = True
     """Also write TensorBoard event files to OUT/tb."""
     progress: bool = True
