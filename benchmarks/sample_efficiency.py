@@ -175,7 +175,7 @@ def main() -> None:
     for row in table:
         score = "-" if row["mean"] is None else f"{row['mean']} ± {row['std']}"
         print(
-            f"| {row['env']} | {row['method']} | {row['step']} | {row['seeds']} | {score} | "
+            f"| {row['env']} | {row['method']} | {row['step'] // 1000}k | {row['seeds']} | {score} | "
             f"{row['published_rank_pal_auto'] or '-'} |"
         )
     half = f"{args.steps // 2000}k-{args.steps // 1000}k"
