@@ -102,15 +102,27 @@ def read_scores(out: Path, archived: Path) -> dict[int, float]:
         return {int(row["env_steps"]): float(row["normalized_score"]) for row in csv.DictReader(handle)}
 
 
-def summarize(args: argparse.Namespace) -> list[dict]:
+RunScores = dict[tuple[str, str, int], dict[int, float]]
+
+
+def read_all_scores(args: argparse.Namespace) -> RunScores:
+    """:func:`read_scores` of every (env, method, seed) asked for."""
+    return {
+        (env, method, seed): read_scores(
+            run_dir(args.root, env, method, seed), run_dir(args.archive, env, method, seed)
+        )
+        for env in args.envs
+        for method in args.methods
+        for seed in args.seeds
+    }
+
+
+def summarize(args: argparse.Namespace, all_scores: RunScores) -> list[dict]:
     """Mean and standard deviation over the seeds of the score at each ``--at`` step."""
     table = []
     for env in args.envs:
         for method in args.methods:
-            runs = [
-                read_scores(run_dir(args.root, env, method, s), run_dir(args.archive, env, method, s))
-                for s in args.seeds
-            ]
+            runs = [all_scores[env, method, seed] for seed in args.seeds]
             for step in args.at:
                 scores = [run[step] for run in runs if step in run]
                 table.append(
@@ -127,29 +139,26 @@ def summarize(args: argparse.Namespace) -> list[dict]:
     return table
 
 
-def per_run(args: argparse.Namespace) -> list[dict]:
+def per_run(args: argparse.Namespace, all_scores: RunScores) -> list[dict]:
     """For every finished run: the first step whose score reaches ``--threshold``, and the median, minimum
     and maximum of the evaluations in the second half of the run (how steady the imitation stays)."""
     rows = []
-    for env in args.envs:
-        for method in args.methods:
-            for seed in args.seeds:
-                scores = read_scores(run_dir(args.root, env, method, seed), run_dir(args.archive, env, method, seed))
-                if max(scores, default=0) < args.steps:
-                    continue
-                late = [score for step, score in scores.items() if step >= args.steps // 2]
-                reached = [step for step, score in sorted(scores.items()) if score >= args.threshold]
-                rows.append(
-                    {
-                        "env": env,
-                        "method": method,
-                        "seed": seed,
-                        "first_step_at_threshold": reached[0] if reached else None,
-                        "late_median": round(float(np.median(late)), 1),
-                        "late_min": round(min(late), 1),
-                        "late_max": round(max(late), 1),
-                    }
-                )
+    for (env, method, seed), scores in all_scores.items():
+        if max(scores, default=0) < args.steps:
+            continue
+        late = [score for step, score in scores.items() if step >= args.steps // 2]
+        reached = [step for step, score in sorted(scores.items()) if score >= args.threshold]
+        rows.append(
+            {
+                "env": env,
+                "method": method,
+                "seed": seed,
+                "first_step_at_threshold": reached[0] if reached else None,
+                "late_median": round(float(np.median(late)), 1),
+                "late_min": round(min(late), 1),
+                "late_max": round(max(late), 1),
+            }
+        )
     return rows
 
 
@@ -168,7 +177,8 @@ def main() -> None:
     args = parser.parse_args()
     if not args.summarize_only:
         launch_all(args)
-    table, runs = summarize(args), per_run(args)
+    all_scores = read_all_scores(args)
+    table, runs = summarize(args, all_scores), per_run(args, all_scores)
     print(json.dumps({"at_steps": table, "runs": runs}))
     print("\n| env | method | steps | seeds | normalized score | published RANK-PAL(auto) |")
     print("| --- | --- | --- | --- | --- | --- |")
