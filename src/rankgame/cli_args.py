@@ -85,14 +85,9 @@ def add_dataclass_options(parser: argparse.ArgumentParser, default: Any, prefix:
             continue
         kind, extra = _parser_for(hints[f.name])
         shown = " ".join(map(str, value)) if isinstance(value, tuple) else value
-        group.add_argument(
-            _option(prefix, f.name),
-            dest=dest,
-            type=kind,
-            default=value,
-            help=f"{help_text} (default: {shown})",
-            **extra,
-        )
+        if value is not None:  # a field defaulting to None says in its docstring what None means
+            help_text = f"{help_text} (default: {shown})"
+        group.add_argument(_option(prefix, f.name), dest=dest, type=kind, default=value, help=help_text, **extra)
 
 
 def dataclass_from_args(namespace: argparse.Namespace, default: Any, prefix: str = "") -> Any:
