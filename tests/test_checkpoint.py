@@ -1,4 +1,4 @@
-"""Which checkpoint a run continues from (``--resume``), for every state its output folder can be in."""
+"""Resuming a run: which checkpoint it continues from, for every state of its folder, and which settings may change."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from rankgame.checkpoint import CHECKPOINT_NAME, checkpoint_to_resume
+from rankgame.checkpoint import CHECKPOINT_NAME, RUN_CONTROL_OPTIONS, checkpoint_to_resume, require_same_settings
 from rankgame.errors import RankGameError
 
 
@@ -32,3 +32,15 @@ def test_a_run_stopped_before_its_first_checkpoint_starts_again(
         checkpoint_to_resume(tmp_path, resume=False)
     assert checkpoint_to_resume(tmp_path, resume=True) is None
     assert "starting it again at step 0" in capsys.readouterr().err
+
+
+def test_a_resumed_run_may_change_only_its_run_control_options() -> None:
+    saved = {"steps": 1000, "eval_every": 100, "k": 10.0, "sac": {"hidden_sizes": [256, 256], "gamma": 0.99}}
+    longer = {**saved, "steps": 5000, "eval_every": 500}
+    require_same_settings(saved, longer, RUN_CONTROL_OPTIONS)  # no error
+    with pytest.raises(RankGameError, match=r"^--sac.hidden-sizes 64 64 differs from the checkpoint's 256 256;"):
+        require_same_settings(saved, {**saved, "sac": {"hidden_sizes": [64, 64], "gamma": 0.99}}, RUN_CONTROL_OPTIONS)
+    with pytest.raises(RankGameError, match=r"^--k 5.0 differs"):
+        require_same_settings(saved, {**saved, "k": 5.0}, RUN_CONTROL_OPTIONS)
+    with pytest.raises(RankGameError, match=r"^--expert x.npz differs from the checkpoint's \(not given\)"):
+        require_same_settings({**saved, "expert": None}, {**saved, "expert": "x.npz"}, RUN_CONTROL_OPTIONS)

@@ -107,7 +107,7 @@ def test_experts_listing_as_json() -> None:
         (["expert", "--env", "CartPole-v1", "--steps", "10"], "Discrete action space"),
         (["expert", "--steps", "ten"], "invalid int value"),
         (["expert", "--steps", "-5"], "must be positive"),
-        (["expert", "--sac.gamma", "2"], "gamma must lie in [0, 1]"),
+        (["expert", "--sac.gamma", "2"], "gamma must lie in [0, 1)"),
         (["expert", "--preset", "fancy"], "unknown preset 'fancy'"),
         (["fly"], "unknown command 'fly'"),
         (["record", "--policy", "/nonexistent/p.msgpack"], "policy file not found"),
@@ -138,7 +138,7 @@ def test_expert_run_resumes_and_trains_longer(tmp_path: Path) -> None:
     assert run_cli(*TOY_EXPERT_ARGS, "--steps", "600", "--out", str(out)).returncode == 0
     assert_one_line_error(run_cli(*TOY_EXPERT_ARGS, "--steps", "900", "--out", str(out)), "already holds a run")
     changed = run_cli(*TOY_EXPERT_ARGS, "--steps", "900", "--out", str(out), "--resume", "--sac.gamma", "0.9")
-    assert_one_line_error(changed, "SAC settings differ")
+    assert_one_line_error(changed, "--sac.gamma 0.9 differs from the checkpoint's 0.99")
     resumed = run_cli(*TOY_EXPERT_ARGS, "--steps", "900", "--out", str(out), "--resume")
     assert resumed.returncode == 0, resumed.stderr
     steps = [row.split(",")[0] for row in (out / "metrics.csv").read_text().splitlines()[1:]]

@@ -8,15 +8,21 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import TOY_TRAIN_ARGS
 
+from rankgame.checkpoint import flatten_tree
 from rankgame.cli import main
 from rankgame.data.trajectories import Trajectory, load_trajectories, save_trajectories
+from rankgame.errors import RankGameError
+from rankgame.game.loop import RankingGame, TrainConfig
 from rankgame.game.methods import METHODS
+from rankgame.policy.sac import SACConfig
+from rankgame.reward.player import RewardConfig
 
 
 def _rows(out: Path) -> list[dict[str, str]]:
@@ -41,7 +47,47 @@ def test_every_method_runs(toy_expert_file: Path, tmp_path: Path) -> None:
         out = tmp_path / method
         args = [*TOY_TRAIN_ARGS, "--method", method, "--expert", str(toy_expert_file), "--steps", "480"]
         assert main(["train", *args, "--eval-every", "480", "--eval-episodes", "1", "--out", str(out)]) == 0
-        assert np.isfinite(float(_rows(out)[-1]["eval_return"]))
+        last = _rows(out)[-1]
+        for column in ("eval_return", "reward/train_loss", "reward/agent", "reward/expert", "losses/critic"):
+            assert np.isfinite(float(last[column])), (method, column, last)
+
+
+def test_a_checkpoint_restores_every_piece_of_the_game(toy_expert_file: Path, tmp_path: Path) -> None:
+    cfg = TrainConfig(
+        env="rankgame/PointGoal-v0",
+        method="rank-ral-auto",
+        expert=toy_expert_file,
+        seed=3,
+        sac=replace(SACConfig(), hidden_sizes=(16,), batch_size=32, start_steps=100, update_after=100),
+        reward=replace(RewardConfig(), hidden_sizes=(16,), batch_size=64),
+    )
+    game = RankingGame(cfg)
+    for step in range(1, 4 * game.n_pol + 1):
+        game.env_step()
+        if step % game.n_pol == 0:
+            game.reward_turn()
+    game.save(tmp_path / "checkpoint.npz", {"wall_s": 1.5})
+    restored = RankingGame(cfg)
+    assert restored.restore(tmp_path / "checkpoint.npz")["wall_s"] == 1.5
+
+    def arrays(g: RankingGame) -> dict[str, np.ndarray]:
+        _, learner_arrays = g.learner.checkpoint()
+        return {**learner_arrays, **flatten_tree("reward", g.reward_state), **g.data.state_dict()}
+
+    saved, loaded = arrays(game), arrays(restored)
+    assert saved.keys() == loaded.keys() and len(game.data.agent) == 4
+    for key in saved:
+        np.testing.assert_array_equal(saved[key], loaded[key], err_msg=key)
+    assert restored.learner.env_steps == game.learner.env_steps == 4 * game.n_pol
+    assert restored.rng.bit_generator.state == game.rng.bit_generator.state
+    assert restored.learner.rng.bit_generator.state == game.learner.rng.bit_generator.state
+    np.testing.assert_equal(restored.reward_metrics, game.reward_metrics)  # NaN equals NaN here
+    # A resumed run must keep its settings: a changed option is refused by name.
+    changed = RankingGame(replace(cfg, k=5.0))
+    with pytest.raises(RankGameError, match="--k 5.0 differs from the checkpoint's 10.0"):
+        changed.restore(tmp_path / "checkpoint.npz")
+    with pytest.raises(RankGameError, match="--reward.batch-size 32 differs"):
+        RankingGame(replace(cfg, reward=replace(cfg.reward, batch_size=32))).restore(tmp_path / "checkpoint.npz")
 
 
 def _train_cmd(out: Path, expert: Path, *extra: str) -> list[str]:
@@ -130,10 +176,9 @@ def test_bad_training_input_gives_one_line_errors(toy_expert_file: Path, tmp_pat
     wide = save_trajectories(tmp_path / "wide.npz", "rankgame/PointGoal-v0", widened)
     _one_line_error([*base, "--expert", str(wide)], "expert data has obs_dim=3, act_dim=1")
     # An episode cut short by a time limit cannot be aligned with the horizon:
-    cut = [
-        Trajectory(t.obs[:11], t.acts[:10], t.rews[:10], t.terminated[:10], t.truncated[9:19])
-        for t in data.trajectories
-    ]
+    cut_short = np.zeros(10, bool)
+    cut_short[-1] = True
+    cut = [Trajectory(t.obs[:11], t.acts[:10], t.rews[:10], t.terminated[:10], cut_short) for t in data.trajectories]
     short = save_trajectories(tmp_path / "short.npz", "rankgame/PointGoal-v0", cut)
     _one_line_error([*base, "--expert", str(short)], "cannot be aligned")
     # Non-finite values:
@@ -145,3 +190,17 @@ def test_bad_training_input_gives_one_line_errors(toy_expert_file: Path, tmp_pat
     _one_line_error([*base, "--expert", str(toy_expert_file), "--expert-trajectories", "50"], "holds 10 trajectories")
     _one_line_error([*base, "--expert", str(toy_expert_file), "--k", "30"], "exceed the reward bound")
     _one_line_error([*base, "--expert", str(toy_expert_file), "--reward-input", "sa"], "use --setting lfd")
+    _one_line_error([*base, "--expert", str(toy_expert_file), "--seed", "-1"], "--seed must be >= 0")
+    _one_line_error([*base, "--expert", str(toy_expert_file), "--sac.gamma", "1"], "gamma must lie in [0, 1)")
+    _one_line_error([*base, "--expert", str(toy_expert_file), "--reward.lr", "inf"], "reward lr must be finite")
+    shorter = [
+        "train",
+        *TOY_TRAIN_ARGS,
+        "--expert",
+        str(toy_expert_file),
+        "--steps",
+        "30",
+        "--out",
+        str(tmp_path / "y"),
+    ]
+    _one_line_error(shorter, "shorter than one game iteration (40 steps")

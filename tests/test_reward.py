@@ -45,6 +45,12 @@ def test_supremum_loss_hand_computed() -> None:
     loss, metrics = supremum_loss(jnp.array([1.0, 3.0, 5.0, 9.0]), jnp.array([0.0, 0.0, 1.0, 1.0]))
     assert float(metrics["gap"]) == pytest.approx(7.0 - 2.0)
     assert float(loss) == pytest.approx(-5.0)
+    # Padding rows (weight 0) count in neither mean: agent rows 1, 3 and expert rows 5, 9 remain.
+    bounded = jnp.array([1.0, 3.0, 5.0, 9.0, 0.0, 0.0, 0.0])
+    is_expert = jnp.array([0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+    weights = jnp.array([1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+    padded, padded_metrics = supremum_loss(bounded, is_expert, weights)
+    assert float(padded_metrics["gap"]) == pytest.approx(5.0) and float(padded) == pytest.approx(-5.0)
 
 
 def test_weighted_sum_of_losses() -> None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import sys
 import zipfile
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +21,23 @@ from rankgame.errors import RankGameError
 
 #: File name of a run's checkpoint inside its output folder.
 CHECKPOINT_NAME = "checkpoint.npz"
+
+#: Options a resumed run may change: how long it goes, how often it evaluates and checkpoints, what
+#: it records at the end, where its folder is and what it displays. All others must match.
+RUN_CONTROL_OPTIONS = frozenset(
+    {
+        "steps",
+        "out",
+        "resume",
+        "progress",
+        "tensorboard",
+        "eval_every",
+        "eval_episodes",
+        "checkpoint_every",
+        "trajectories",
+        "random_episodes",
+    }
+)
 
 
 def _is_key(leaf: Any) -> bool:
@@ -88,3 +106,39 @@ def checkpoint_to_resume(out: Path, resume: bool) -> Path | None:
         print(f"{out}: the run stopped before its first checkpoint; starting it again at step 0", file=sys.stderr)
         return None
     raise RankGameError(f"no checkpoint to resume from at {ckpt}")
+
+
+def require_same_settings(saved: dict[str, Any], current: dict[str, Any], may_change: Collection[str]) -> None:
+    """Refuse to resume with settings other than the checkpoint's.
+
+    ``saved`` and ``current`` are a run's config as JSON (nested dicts for ``sac`` and ``reward``);
+    every option must be equal except the top-level ones in ``may_change`` (how long the run goes,
+    how often it evaluates and checkpoints, what it displays). Raises :class:`RankGameError` naming
+    the first option that differs.
+    """
+    flat_saved, flat_current = _flatten_options(saved), _flatten_options(current)
+    for name in sorted(set(flat_saved) | set(flat_current)):
+        if name.split(".")[0] in may_change:
+            continue
+        was, now = flat_saved.get(name), flat_current.get(name)
+        if was != now:
+            option = "--" + name.replace("_", "-")
+            raise RankGameError(
+                f"{option} {_shown(now)} differs from the checkpoint's {_shown(was)}; a resumed run keeps its settings"
+            )
+
+
+def _flatten_options(config: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    flat: dict[str, Any] = {}
+    for key, value in config.items():
+        if isinstance(value, dict):
+            flat.update(_flatten_options(value, f"{prefix}{key}."))
+        else:
+            flat[prefix + key] = value
+    return flat
+
+
+def _shown(value: Any) -> str:
+    if value is None:
+        return "(not given)"
+    return " ".join(map(str, value)) if isinstance(value, list) else str(value)

@@ -12,14 +12,17 @@ import dataclasses
 import json
 import shlex
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import NoReturn, TypeVar
 
 from rankgame.cli_args import add_dataclass_options, dataclass_from_args
 from rankgame.errors import RankGameError
 
 PROG = "rankgame"
+
+#: A command's config dataclass (``TrainConfig``, ``ExpertConfig``).
+Config = TypeVar("Config")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -39,7 +42,9 @@ def _preset_from_argv(argv: Sequence[str], default: str) -> str:
     return default
 
 
-def _config_with_sac_preset(argv: Sequence[str], command: str, description: str, make_config, default_preset: str):
+def _config_with_sac_preset(
+    argv: Sequence[str], command: str, description: str, make_config: Callable[..., Config], default_preset: str
+) -> Config:
     """Parse ``argv`` into the config made by ``make_config(sac=preset)``; ``--preset`` sets the SAC defaults."""
     from rankgame.policy.sac import SAC_PRESETS
 
@@ -97,6 +102,8 @@ def _cmd_record(argv: Sequence[str]) -> int:
     cfg = dataclass_from_args(parser.parse_args(argv), RecordConfig())
     if cfg.episodes <= 0 or cfg.random_episodes <= 0:
         raise RankGameError("--episodes and --random-episodes must be positive")
+    if cfg.seed < 0:
+        raise RankGameError(f"--seed must be >= 0 (got {cfg.seed})")
     summary = record_expert(
         cfg.policy, cfg.out, cfg.episodes, cfg.seed, cfg.random_episodes, command=shlex.join([PROG, "record", *argv])
     )

@@ -20,19 +20,25 @@ import jax
 import numpy as np
 from tqdm import tqdm
 
-from rankgame.checkpoint import CHECKPOINT_NAME, checkpoint_to_resume, load_checkpoint, save_checkpoint
+from rankgame.checkpoint import (
+    CHECKPOINT_NAME,
+    RUN_CONTROL_OPTIONS,
+    checkpoint_to_resume,
+    load_checkpoint,
+    require_same_settings,
+    save_checkpoint,
+)
 from rankgame.cli_args import config_to_json
 from rankgame.data.trajectories import save_trajectories
 from rankgame.envs.make import make_env
-from rankgame.envs.rollout import episode_returns, random_policy, rollout
+from rankgame.envs.rollout import EVAL_SEED_OFFSET, episode_returns, random_policy, rollout
 from rankgame.errors import RankGameError
 from rankgame.logging import RunLogger
 from rankgame.policy.io import load_policy, save_policy
 from rankgame.policy.learner import SACLearner
 from rankgame.policy.sac import SACConfig
 
-#: Evaluation and recording episodes are seeded apart from training so they never share resets.
-EVAL_SEED_OFFSET = 10_000
+#: Recorded and random-policy episodes are seeded apart from training and evaluation resets.
 RECORD_SEED_OFFSET = 20_000
 RANDOM_SEED_OFFSET = 30_000
 
@@ -70,6 +76,8 @@ class ExpertConfig:
 
     def validate(self) -> None:
         """Raise :class:`RankGameError` for values that make no sense."""
+        if self.seed < 0:
+            raise RankGameError(f"--seed must be >= 0 (got {self.seed})")
         if min(self.steps, self.eval_every, self.eval_episodes, self.checkpoint_every) <= 0:
             raise RankGameError("--steps, --eval-every, --eval-episodes and --checkpoint-every must be positive")
         if self.trajectories <= 0 or self.random_episodes <= 0:
@@ -154,29 +162,30 @@ class _Progress:
 
 def _restore(cfg: ExpertConfig, learner: SACLearner, path: Path) -> _Progress:
     metadata, arrays = load_checkpoint(path)
-    saved = metadata["config"]
-    for key in ("env", "seed"):
-        if str(saved[key]) != str(getattr(cfg, key)):
-            raise RankGameError(f"--{key} {getattr(cfg, key)} differs from the checkpoint's {saved[key]}")
-    if saved["sac"] != config_to_json(cfg)["sac"]:
-        raise RankGameError("SAC settings differ from the checkpoint's; resume with the same --preset and --sac.*")
+    require_same_settings(metadata["config"], config_to_json(cfg), RUN_CONTROL_OPTIONS)
     if cfg.steps < int(metadata["env_steps"]):
         raise RankGameError(f"--steps {cfg.steps} is below the checkpoint's {metadata['env_steps']} steps")
     learner.restore(metadata, arrays, seed=cfg.seed + int(metadata["env_steps"]))
-    return _Progress(**metadata["progress"])
+    progress = _Progress(**metadata["progress"])
+    # The best policy is saved as soon as it is evaluated, possibly after the last checkpoint.
+    best_path = path.parent / "best_policy.msgpack"
+    if best_path.exists():
+        best = load_policy(best_path).metadata
+        if best["eval_return"] > progress.best_return:
+            progress.best_return, progress.best_step = float(best["eval_return"]), int(best["env_steps"])
+    return progress
 
 
 def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any]:
     """Train SAC on the environment reward, keep the best evaluated policy and record its episodes."""
     cfg.validate()
     out = Path(cfg.out)
-    ckpt = out / CHECKPOINT_NAME
+    resume_from = checkpoint_to_resume(out, cfg.resume)
     env = make_env(cfg.env)
     eval_env = make_env(cfg.env)
     learner = SACLearner(env, cfg.sac, cfg.seed)
-    progress = _Progress()
-    if checkpoint_to_resume(out, cfg.resume) is not None:
-        progress = _restore(cfg, learner, ckpt)
+    progress = _restore(cfg, learner, resume_from) if resume_from is not None else _Progress()
+    ckpt = out / CHECKPOINT_NAME
     start_step = learner.env_steps
     out.mkdir(parents=True, exist_ok=True)
     spec = learner.spec
@@ -188,51 +197,53 @@ def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any
     bar = tqdm(
         total=cfg.steps, initial=start_step, disable=not cfg.progress, unit="step", dynamic_ncols=True, desc=cfg.env
     )
-    for step in range(start_step + 1, cfg.steps + 1):
-        result = learner.env_step()
-        if result.episode_return is not None:
-            progress.train_return = result.episode_return
-        metrics = learner.maybe_update() or metrics
-        bar.update(1)
-        if step % cfg.eval_every == 0 or step == cfg.steps:
-            eval_start = time.perf_counter()
-            returns = episode_returns(eval_env, learner.policy(), cfg.eval_episodes, cfg.seed + EVAL_SEED_OFFSET)
-            progress.eval_s += time.perf_counter() - eval_start
-            progress.wall_s = time.perf_counter() - start
-            logger.log(
-                {
-                    "env_steps": step,
-                    "wall_s": progress.wall_s,
-                    "steps_per_s": step / max(progress.wall_s - progress.eval_s, 1e-9),
-                    "train_return": progress.train_return,
-                    "eval_return": float(returns.mean()),
-                    "eval_return_std": float(returns.std()),
-                    **metrics,
-                }
-            )
-            params = jax.device_get(learner.state.actor_params)
-            policy_meta = {**provenance, "env_steps": step, "eval_return": float(returns.mean())}
-            save_policy(
-                out / "policy.msgpack", learner.sac, params, cfg.env, spec.act_low, spec.act_high, **policy_meta
-            )
-            if returns.mean() > progress.best_return:
-                progress.best_return, progress.best_step = float(returns.mean()), step
-                save_policy(
-                    out / "best_policy.msgpack",
-                    learner.sac,
-                    params,
-                    cfg.env,
-                    spec.act_low,
-                    spec.act_high,
-                    **policy_meta,
+    try:
+        for step in range(start_step + 1, cfg.steps + 1):
+            result = learner.env_step()
+            if result.episode_return is not None:
+                progress.train_return = result.episode_return
+            metrics = learner.maybe_update() or metrics
+            bar.update(1)
+            if step % cfg.eval_every == 0 or step == cfg.steps:
+                eval_start = time.perf_counter()
+                returns = episode_returns(eval_env, learner.policy(), cfg.eval_episodes, cfg.seed + EVAL_SEED_OFFSET)
+                progress.eval_s += time.perf_counter() - eval_start
+                progress.wall_s = time.perf_counter() - start
+                logger.log(
+                    {
+                        "env_steps": step,
+                        "wall_s": progress.wall_s,
+                        "steps_per_s": step / max(progress.wall_s - progress.eval_s, 1e-9),
+                        "train_return": progress.train_return,
+                        "eval_return": float(returns.mean()),
+                        "eval_return_std": float(returns.std()),
+                        **metrics,
+                    }
                 )
-            bar.set_postfix(eval=f"{returns.mean():.0f}", best=f"{progress.best_return:.0f}")
-            if step % cfg.checkpoint_every < cfg.eval_every or step == cfg.steps:
-                learner_meta, arrays = learner.checkpoint()
-                metadata = {**learner_meta, "config": config_to_json(cfg), "progress": vars(progress)}
-                save_checkpoint(ckpt, metadata, arrays)
-    bar.close()
-    logger.close()
+                params = jax.device_get(learner.state.actor_params)
+                policy_meta = {**provenance, "env_steps": step, "eval_return": float(returns.mean())}
+                save_policy(
+                    out / "policy.msgpack", learner.sac, params, cfg.env, spec.act_low, spec.act_high, **policy_meta
+                )
+                if returns.mean() > progress.best_return:
+                    progress.best_return, progress.best_step = float(returns.mean()), step
+                    save_policy(
+                        out / "best_policy.msgpack",
+                        learner.sac,
+                        params,
+                        cfg.env,
+                        spec.act_low,
+                        spec.act_high,
+                        **policy_meta,
+                    )
+                bar.set_postfix(eval=f"{returns.mean():.0f}", best=f"{progress.best_return:.0f}")
+                if step % cfg.checkpoint_every < cfg.eval_every or step == cfg.steps:
+                    learner_meta, arrays = learner.checkpoint()
+                    metadata = {**learner_meta, "config": config_to_json(cfg), "progress": vars(progress)}
+                    save_checkpoint(ckpt, metadata, arrays)
+    finally:
+        bar.close()
+        logger.close()
     summary = record_expert(
         out / "best_policy.msgpack",
         out / "trajectories.npz",

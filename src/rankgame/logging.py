@@ -27,7 +27,7 @@ class RunLogger:
         tensorboard: bool = True,
         step_key: str = "env_steps",
         resume_step: int | None = None,
-    ):
+    ) -> None:
         self.path = Path(out_dir) / "metrics.csv"
         self.columns = list(columns)
         self.step_key = step_key

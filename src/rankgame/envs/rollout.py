@@ -12,6 +12,10 @@ from rankgame.data.trajectories import Trajectory
 #: Maps one observation ``(obs_dim,)`` to one action ``(act_dim,)`` in environment units.
 PolicyFn = Callable[[np.ndarray], np.ndarray]
 
+#: Evaluation episodes of a run with seed ``s`` reset from ``s + EVAL_SEED_OFFSET + i``, apart from
+#: the resets of its training episodes.
+EVAL_SEED_OFFSET = 10_000
+
 
 def to_env_action(acts: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
     """Map normalized actions in ``[-1, 1]`` to the box ``[low, high]`` (any leading shape)."""

@@ -3,9 +3,11 @@
 * PAL (policy as leader): the reward is fit *to convergence* on the current iteration's agent data
   only, judged by a shuffled holdout (Alg. 2).
 * RAL (reward as leader): the reward is fit on *all* agent data so far, with ``|D| / batch`` gradient
-  steps per iteration (Alg. 3). ``|D|`` counts the real agent states collected so far, not the
-  absorbing states that pad short episodes: padding would multiply the budget of an early phase
-  full of short episodes by up to H / (episode length) without adding information.
+  steps per iteration (Alg. 3), rounded up to whole fused chunks (``RewardConfig.chunk``, 8 steps).
+  ``|D|`` counts the real agent states collected so far, not the absorbing states that pad short
+  episodes: padding would multiply the budget of an early phase full of short episodes by up to
+  H / (episode length) without adding information. RAL holds out the same shuffled share of agent
+  rows (time steps) as PAL (``holdout_fraction``), only to log a holdout loss; it trains on the rest.
 """
 
 from __future__ import annotations

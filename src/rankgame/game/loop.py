@@ -23,9 +23,11 @@ from tqdm import tqdm
 
 from rankgame.checkpoint import (
     CHECKPOINT_NAME,
+    RUN_CONTROL_OPTIONS,
     checkpoint_to_resume,
     flatten_tree,
     load_checkpoint,
+    require_same_settings,
     save_checkpoint,
     unflatten_tree,
 )
@@ -33,7 +35,7 @@ from rankgame.cli_args import config_to_json
 from rankgame.data.experts import normalized_score, shipped_expert_path
 from rankgame.data.trajectories import TrajectoryFile, load_trajectories
 from rankgame.envs.make import env_spec, make_env
-from rankgame.envs.rollout import episode_returns, random_policy, to_normalized_action
+from rankgame.envs.rollout import EVAL_SEED_OFFSET, episode_returns, random_policy, to_normalized_action
 from rankgame.errors import RankGameError
 from rankgame.game.leaders import add_agent_data, fit_reward
 from rankgame.game.methods import METHODS
@@ -46,8 +48,6 @@ from rankgame.reward.nets import RewardInput, feature_dim
 from rankgame.reward.player import RewardConfig, RewardPlayer
 from rankgame.reward.ranking_data import RankingData
 from rankgame.reward.targets import Schedule, lambda_grid, target_schedule
-
-EVAL_SEED_OFFSET = 10_000
 
 
 @dataclass(frozen=True)
@@ -121,6 +121,8 @@ class TrainConfig:
         for name, value in positive.items():
             if value <= 0:
                 raise RankGameError(f"{name} must be positive (got {value})")
+        if self.seed < 0:
+            raise RankGameError(f"--seed must be >= 0 (got {self.seed})")
         if self.policy_updates is not None and self.policy_updates <= 0:
             raise RankGameError("--policy-updates must be positive")
         if self.k <= 0:
@@ -198,6 +200,11 @@ class RankingGame:
             )
         self.horizon = spec.max_episode_steps or max(len(t) for t in expert.trajectories)
         self.n_pol = cfg.policy_updates or self.horizon
+        if cfg.steps < self.n_pol:
+            raise RankGameError(
+                f"--steps {cfg.steps} is shorter than one game iteration ({self.n_pol} steps, the horizon or "
+                "--policy-updates): the reward would never be fit"
+            )
         reward_input = cfg.resolved_reward_input
         self.player = RewardPlayer(
             feature_dim(spec.obs_dim, spec.act_dim, reward_input), reward_input, self.method.loss, cfg.reward
@@ -224,9 +231,9 @@ class RankingGame:
         self.data = RankingData(expert_inputs, lambdas, targets, cfg.reward.holdout_fraction, flag_index=spec.obs_dim)
         self.expert_return = float(expert.returns.mean())
         self.random_return = float(expert.metadata.get("random_return_mean", np.nan))
-        if not np.isfinite(self.random_return):
-            env = make_env(cfg.env)
-            self.random_return = float(episode_returns(env, random_policy(env, cfg.seed), 20, cfg.seed).mean())
+        if not np.isfinite(self.random_return):  # expert file without it: measure on the evaluation env
+            policy = random_policy(self.eval_env, cfg.seed)
+            self.random_return = float(episode_returns(self.eval_env, policy, 20, cfg.seed).mean())
         self.episode = _Episode()
         self.finished: list[np.ndarray] = []
         self.reward_metrics: dict[str, float] = {}
@@ -291,10 +298,7 @@ class RankingGame:
 
     def restore(self, path: Path) -> dict[str, Any]:
         metadata, arrays = load_checkpoint(path)
-        saved_cfg = metadata["config"]
-        for key in ("env", "method", "setting", "seed"):
-            if str(saved_cfg[key]) != str(getattr(self.cfg, key)):
-                raise RankGameError(f"--{key} {getattr(self.cfg, key)} differs from the checkpoint's {saved_cfg[key]}")
+        require_same_settings(metadata["config"], config_to_json(self.cfg), RUN_CONTROL_OPTIONS)
         if self.cfg.steps < int(metadata["env_steps"]):
             raise RankGameError(f"--steps {self.cfg.steps} is below the checkpoint's {metadata['env_steps']} steps")
         self.learner.restore(metadata, arrays, seed=self.cfg.seed + int(metadata["env_steps"]))
@@ -307,11 +311,12 @@ class RankingGame:
 
 def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
     """Run (or resume) the ranking game and return a summary of the final evaluation."""
-    game = RankingGame(cfg)
+    cfg.validate()
     out = Path(cfg.out)
-    ckpt = out / CHECKPOINT_NAME
+    ckpt = checkpoint_to_resume(out, cfg.resume)
+    game = RankingGame(cfg)
     elapsed = 0.0
-    if checkpoint_to_resume(out, cfg.resume) is not None:
+    if ckpt is not None:
         elapsed = float(game.restore(ckpt)["wall_s"])
     out.mkdir(parents=True, exist_ok=True)
     command = command or shlex.join(sys.argv)
@@ -352,7 +357,7 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
                 )
                 bar.set_postfix(score=f"{last_eval[1]:.1f}", ret=f"{last_eval[0]:.0f}")
             if step % game.n_pol == 0 and (step % cfg.checkpoint_every < game.n_pol or step == cfg.steps):
-                game.save(ckpt, {"wall_s": time.perf_counter() - start})
+                game.save(out / CHECKPOINT_NAME, {"wall_s": time.perf_counter() - start})
             bar.update(1)
     finally:
         bar.close()

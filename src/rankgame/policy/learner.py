@@ -33,7 +33,6 @@ class StepResult:
     terminated: bool
     truncated: bool
     episode_return: float | None = None
-    episode_length: int | None = None
 
 
 class SACLearner:
@@ -74,7 +73,6 @@ class SACLearner:
         self.env_steps = 0
         self._obs, _ = env.reset(seed=seed)
         self._episode_return = 0.0
-        self._episode_length = 0
         self._updates_owed = 0.0
 
     def env_step(self) -> StepResult:
@@ -91,11 +89,10 @@ class SACLearner:
         result = StepResult(self._obs, act, act_norm, next_obs, bool(terminated), bool(truncated))
         self.env_steps += 1
         self._episode_return += float(rew)
-        self._episode_length += 1
         if terminated or truncated:
-            result.episode_return, result.episode_length = self._episode_return, self._episode_length
+            result.episode_return = self._episode_return
             self._obs, _ = self.env.reset()
-            self._episode_return, self._episode_length = 0.0, 0
+            self._episode_return = 0.0
         else:
             self._obs = next_obs
         return result
@@ -117,7 +114,7 @@ class SACLearner:
         self._updates_owed = float(metadata["updates_owed"])
         self.rng.bit_generator.state = metadata["learner_rng"]
         self._obs, _ = self.env.reset(seed=seed)
-        self._episode_return, self._episode_length = 0.0, 0
+        self._episode_return = 0.0
 
     def _policy_obs(self, obs: np.ndarray) -> np.ndarray:
         return flag_obs(np.asarray(obs, np.float32)) if self.absorbing else obs

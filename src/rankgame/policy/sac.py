@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from rankgame.errors import require
+from rankgame.errors import nonfinite_fields, require
 
 Batch = dict[str, jax.Array]
 #: ``(reward_params, batch) -> rews`` of shape ``(batch_size,)``.
@@ -74,7 +74,8 @@ class SACConfig:
         """Raise ``ValueError`` with a one-line reason if the values make no sense together."""
         checks = [
             (self.batch_size > 0, "batch_size must be positive"),
-            (0.0 <= self.gamma <= 1.0, "gamma must lie in [0, 1]"),
+            (not nonfinite_fields(self), f"{', '.join(nonfinite_fields(self))} must be finite"),
+            (0.0 <= self.gamma < 1.0, "gamma must lie in [0, 1)"),
             (0.0 <= self.polyak < 1.0, "polyak must lie in [0, 1)"),
             (self.init_alpha > 0.0, "init_alpha must be positive"),
             (min(self.actor_lr, self.critic_lr, self.alpha_lr) > 0.0, "learning rates must be positive"),

@@ -41,16 +41,22 @@ def regression_ranking_loss(
     return loss, {"mse": loss}
 
 
-def supremum_loss(bounded: jax.Array, is_expert: jax.Array) -> tuple[jax.Array, Metrics]:
+def supremum_loss(
+    bounded: jax.Array, is_expert: jax.Array, weights: jax.Array | None = None
+) -> tuple[jax.Array, Metrics]:
     """IMIT loss: ``-(mean r(expert) - mean r(agent))`` for bounded rewards.
 
     Args:
         bounded: ``(B,)`` rewards already squashed into ``[-R_max, R_max]``.
         is_expert: ``(B,)`` 1.0 for expert inputs, 0.0 for agent inputs; both groups must be present.
+        weights: optional ``(B,)`` non-negative weights (e.g. 0 for padding rows, which then count
+            in neither group's mean).
     """
-    n_expert = jnp.maximum(jnp.sum(is_expert), 1.0)
-    n_agent = jnp.maximum(jnp.sum(1.0 - is_expert), 1.0)
-    gap = jnp.sum(is_expert * bounded) / n_expert - jnp.sum((1.0 - is_expert) * bounded) / n_agent
+    w = jnp.ones_like(bounded) if weights is None else weights
+    expert_w, agent_w = is_expert * w, (1.0 - is_expert) * w
+    gap = jnp.sum(expert_w * bounded) / jnp.maximum(jnp.sum(expert_w), 1e-08) - jnp.sum(
+        agent_w * bounded
+    ) / jnp.maximum(jnp.sum(agent_w), 1e-08)
     return -gap, {"gap": gap}
 
 

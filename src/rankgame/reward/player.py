@@ -15,9 +15,9 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from rankgame.errors import require
+from rankgame.errors import nonfinite_fields, require
 from rankgame.policy.sac import Batch
-from rankgame.reward.losses import regression_ranking_loss, supremum_loss
+from rankgame.reward.losses import Metrics, regression_ranking_loss, supremum_loss
 from rankgame.reward.nets import Bound, RewardInput, RewardNet, batch_features, bound_reward
 from rankgame.reward.ranking_data import RankingData
 
@@ -53,7 +53,10 @@ class RewardConfig:
     """Gradient steps fused into one jitted call."""
 
     def validate(self) -> None:
+        """Raise ``ValueError`` with a one-line reason if the values make no sense together."""
         checks = [
+            (not nonfinite_fields(self), f"reward {', '.join(nonfinite_fields(self))} must be finite"),
+            (all(h > 0 for h in self.hidden_sizes), "reward hidden_sizes must be positive"),
             (self.lr > 0 and self.weight_decay >= 0, "reward lr must be positive and weight_decay >= 0"),
             (self.batch_size > 0 and self.chunk > 0, "reward batch_size and chunk must be positive"),
             (self.r_max > 0, "r_max must be positive"),
@@ -115,19 +118,26 @@ class RewardPlayer:
         (padded,), weights = _pad_to_power_of_two([features])
         return float(self._mean_reward(params, padded, weights))
 
-    def _loss(self, params: Any, inputs: jax.Array, targets: jax.Array, is_expert: jax.Array, weights: jax.Array):
+    def _loss(
+        self, params: Any, inputs: jax.Array, targets: jax.Array, is_expert: jax.Array, weights: jax.Array
+    ) -> tuple[jax.Array, Metrics]:
+        """The ranking loss ``()`` and its metrics on inputs ``(B, d)`` with per-row ``(B,)`` arrays."""
         raw = self.net.apply(params, inputs)
         if self.loss_kind == "regression":
             return regression_ranking_loss(raw, targets, weights)
-        return supremum_loss(bound_reward(raw, self.config.r_max, self.bound) * weights, is_expert * weights)
+        return supremum_loss(bound_reward(raw, self.config.r_max, self.bound), is_expert, weights)
 
-    def _loss_value(self, params: Any, inputs: jax.Array, targets: jax.Array, is_expert: jax.Array, weights: jax.Array):
+    def _loss_value(
+        self, params: Any, inputs: jax.Array, targets: jax.Array, is_expert: jax.Array, weights: jax.Array
+    ) -> jax.Array:
         return self._loss(params, inputs, targets, is_expert, weights)[0]
 
-    def _update_many(self, state: RewardState, inputs: jax.Array, targets: jax.Array, is_expert: jax.Array):
+    def _update_many(
+        self, state: RewardState, inputs: jax.Array, targets: jax.Array, is_expert: jax.Array
+    ) -> tuple[RewardState, jax.Array]:
         """Gradient steps over batches ``inputs (n, B, d)``, ``targets (n, B)``, ``is_expert (n, B)``."""
 
-        def step(carry: RewardState, batch: tuple[jax.Array, jax.Array, jax.Array]):
+        def step(carry: RewardState, batch: tuple[jax.Array, jax.Array, jax.Array]) -> tuple[RewardState, jax.Array]:
             x, y, e = batch
             (loss, _), grads = jax.value_and_grad(self._loss, has_aux=True)(carry.params, x, y, e, jnp.ones_like(y))
             updates, opt_state = self.tx.update(grads, carry.opt_state, carry.params)

@@ -119,6 +119,8 @@ class RankingData:
         return inputs, self.targets[group], (group == n_groups - 1).astype(np.float32)
 
     def state_dict(self) -> dict[str, np.ndarray]:
+        """The agent data as arrays for a checkpoint: ``ranking/agent (N, H, d)``, ``ranking/train_rows
+        (R, 2)`` of ``(i, t)``, ``ranking/holdout_rows (R_h, 3)`` of ``(i, t, j)`` and the real-state count."""
         return {
             "ranking/n_real_states": np.asarray(self.n_real_states),
             "ranking/agent": self.agent,
@@ -127,6 +129,7 @@ class RankingData:
         }
 
     def load_state_dict(self, state: dict[str, np.ndarray]) -> None:
+        """Inverse of :meth:`state_dict` (the expert data, grid and targets come from the constructor)."""
         self.agent = state["ranking/agent"]
         self.train_rows = state["ranking/train_rows"]
         self.holdout_rows = state["ranking/holdout_rows"]

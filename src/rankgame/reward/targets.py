@@ -37,7 +37,8 @@ def target_schedule(
 def lambda_grid(n_interpolations: int) -> np.ndarray:
     """Evenly spaced mixture weights ``(n_interpolations + 2,)`` from 0 to 1, both ends included.
 
-    The paper's default, 4 interior mixtures, gives ``0, 0.2, ..., 1``.
+    The default, 4 interior mixtures, gives ``0, 0.2, ..., 1``: five equal steps from the agent to the
+    expert (the paper's Table 4 lists 5 interpolations).
     """
     if n_interpolations < 0:
         raise ValueError("the number of interpolations must be >= 0")
