@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from rankgame.checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
 from rankgame.cli import main
 from rankgame.data.trajectories import load_trajectories
 from rankgame.policy.io import load_policy
@@ -152,3 +153,17 @@ def test_expert_run_resumes_and_trains_longer(tmp_path: Path) -> None:
 def test_expert_resume_without_checkpoint_fails_cleanly(tmp_path: Path) -> None:
     result = run_cli(*TOY_EXPERT_ARGS, "--steps", "600", "--out", str(tmp_path / "none"), "--resume")
     assert_one_line_error(result, "no checkpoint to resume from")
+
+
+def test_expert_resume_keeps_a_best_policy_saved_after_its_last_checkpoint(tmp_path: Path) -> None:
+    out = tmp_path / "expert"
+    assert run_cli(*TOY_EXPERT_ARGS, "--steps", "600", "--out", str(out)).returncode == 0
+    best = load_policy(out / "best_policy.msgpack").metadata
+    # As if the run had died after saving its best policy but before the checkpoint recording it:
+    metadata, arrays = load_checkpoint(out / CHECKPOINT_NAME)
+    metadata["progress"].update(best_return=best["eval_return"] - 1.0, best_step=0)
+    save_checkpoint(out / CHECKPOINT_NAME, metadata, arrays)
+    resumed = run_cli(*TOY_EXPERT_ARGS, "--steps", "600", "--out", str(out), "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    summary = json.loads(resumed.stdout)
+    assert summary["best_step"] == best["env_steps"] and summary["best_eval_return"] == best["eval_return"]
