@@ -138,8 +138,14 @@ def _cmd_plot(argv: Sequence[str]) -> int:
     parser.add_argument("runs", nargs="+", type=Path, help="run folders written by rankgame train or expert")
     parser.add_argument("--column", default="normalized_score", help="metrics.csv column (default: normalized_score)")
     parser.add_argument("--out", type=Path, default=Path("curves.png"), help="image to write (default: curves.png)")
+    parser.add_argument(
+        "--seeds",
+        action="store_true",
+        help="one curve per group of runs whose names differ only in a seed suffix (_s0, -seed1): "
+        "the mean over seeds with a one-standard-deviation band",
+    )
     args = parser.parse_args(argv)
-    print(plot_runs(args.runs, args.out, args.column))
+    print(plot_runs(args.runs, args.out, args.column, seeds=args.seeds))
     return 0
 
 

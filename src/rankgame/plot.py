@@ -1,12 +1,23 @@
-"""Learning curves from one or more run folders (``rankgame plot``); needs the ``plot`` extra."""
+"""Learning curves from one or more run folders (``rankgame plot``); needs the ``plot`` extra.
+
+With ``seeds=True`` runs whose folder names differ only in a seed suffix (``..._s0``, ``...-seed1``,
+``...__s2``) are drawn as one curve: the mean over seeds with a band of one standard deviation, at
+the steps every seed logged.
+"""
 
 from __future__ import annotations
 
 import csv
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
+
 from rankgame.errors import RankGameError
+
+#: A run folder name's seed suffix: ``_s0``, ``-s12``, ``__seed3``.
+SEED_SUFFIX = re.compile(r"[_-]+s(?:eed)?\d+$")
 
 
 def read_curve(run: Path, column: str) -> tuple[list[int], list[float]]:
@@ -26,8 +37,24 @@ def read_curve(run: Path, column: str) -> tuple[list[int], list[float]]:
     return steps, values
 
 
-def plot_runs(runs: Sequence[Path], out: Path, column: str = "normalized_score") -> Path:
-    """Draw ``column`` against environment steps for every run into the image ``out``."""
+def group_by_seed(runs: Sequence[Path]) -> dict[str, list[Path]]:
+    """Run folders keyed by their name without its seed suffix, in the order first seen."""
+    groups: dict[str, list[Path]] = {}
+    for run in runs:
+        groups.setdefault(SEED_SUFFIX.sub("", Path(run).name), []).append(Path(run))
+    return groups
+
+
+def mean_curve(curves: Sequence[tuple[list[int], list[float]]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Steps ``(T,)`` logged by every curve, and the mean ``(T,)`` and standard deviation ``(T,)`` there."""
+    by_step = [dict(zip(steps, values, strict=True)) for steps, values in curves]
+    common = sorted(set.intersection(*(set(curve) for curve in by_step)))
+    table = np.array([[curve[step] for step in common] for curve in by_step], np.float64).reshape(len(curves), -1)
+    return np.asarray(common), table.mean(axis=0), table.std(axis=0)
+
+
+def plot_runs(runs: Sequence[Path], out: Path, column: str = "normalized_score", seeds: bool = False) -> Path:
+    """Draw ``column`` against environment steps for every run (or every group of seeds) into ``out``."""
     try:
         import matplotlib
 
@@ -36,9 +63,17 @@ def plot_runs(runs: Sequence[Path], out: Path, column: str = "normalized_score")
     except ImportError:
         raise RankGameError("plotting needs matplotlib: pip install 'rankgame[plot]'") from None
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    for run in runs:
-        steps, values = read_curve(Path(run), column)
-        ax.plot(steps, values, label=Path(run).name)
+    if seeds:
+        for name, group in group_by_seed(runs).items():
+            steps, mean, std = mean_curve([read_curve(run, column) for run in group])
+            if len(steps) == 0:
+                raise RankGameError(f"the runs of {name} share no logged step")
+            (line,) = ax.plot(steps, mean, label=f"{name} ({len(group)} seed{'s' if len(group) > 1 else ''})")
+            ax.fill_between(steps, mean - std, mean + std, color=line.get_color(), alpha=0.2)
+    else:
+        for run in runs:
+            steps, values = read_curve(Path(run), column)
+            ax.plot(steps, values, label=Path(run).name)
     ax.set_xlabel("environment steps")
     ax.set_ylabel(column)
     ax.grid(alpha=0.3)

@@ -1,0 +1,34 @@
+"""Learning-curve helpers: seed grouping and the mean over seeds, by hand."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from rankgame.cli import main
+from rankgame.plot import group_by_seed, mean_curve
+
+
+def test_runs_are_grouped_by_name_without_the_seed_suffix() -> None:
+    runs = [Path(p) for p in ("a/Hopper__pal__s0", "a/Hopper__pal__s1", "b/Hopper__ral-seed0", "c/plain")]
+    groups = group_by_seed(runs)
+    assert list(groups) == ["Hopper__pal", "Hopper__ral", "plain"]
+    assert groups["Hopper__pal"] == runs[:2] and groups["plain"] == [runs[3]]
+
+
+def test_mean_curve_uses_the_steps_every_seed_logged() -> None:
+    steps, mean, std = mean_curve([([10, 20, 30], [1.0, 2.0, 6.0]), ([10, 20], [3.0, 4.0])])
+    np.testing.assert_array_equal(steps, [10, 20])
+    np.testing.assert_allclose(mean, [2.0, 3.0])
+    np.testing.assert_allclose(std, [1.0, 1.0])
+
+
+def test_plot_seeds_draws_one_band_per_group(tmp_path: Path) -> None:
+    for seed, values in enumerate(([10, 50], [30, 70])):
+        run = tmp_path / f"run_s{seed}"
+        run.mkdir()
+        (run / "metrics.csv").write_text(f"env_steps,normalized_score\n1000,{values[0]}\n2000,{values[1]}\n")
+    out = tmp_path / "mean.png"
+    assert main(["plot", str(tmp_path / "run_s0"), str(tmp_path / "run_s1"), "--seeds", "--out", str(out)]) == 0
+    assert out.read_bytes()[:4] == b"\x89PNG"
