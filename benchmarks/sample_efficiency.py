@@ -12,6 +12,10 @@ runs are not repeated, without the run folders (which hold large checkpoints).
     python benchmarks/sample_efficiency.py --envs Hopper-v5 HalfCheetah-v5 Walker2d-v5 \
         --methods rank-pal-auto rank-ral-auto --seeds 0 1 2 --steps 300000 --root runs/sample-eff
     python benchmarks/sample_efficiency.py --summarize-only --root runs/sample-eff ...
+
+A variant of the defaults gets its own ``--root`` and ``--archive`` and passes its options with
+``--train-args``, e.g. ``--train-args "--reward.lr 1e-4" --root runs/se-lr
+--archive benchmarks/results/sample-efficiency-reward-lr-1e-4``.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ import argparse
 import csv
 import json
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -63,7 +68,7 @@ def launch_all(args: argparse.Namespace) -> None:
     running: dict[str, tuple[subprocess.Popen, Path, Path]] = {}  # core -> (process, run folder, archive)
     for out, archived, env, method, seed in jobs:
         cmd = [sys.executable, "-m", "rankgame.cli", "train", "--env", env, "--method", method, "--seed", str(seed)]
-        cmd += ["--steps", str(args.steps), "--out", str(out), "--no-progress"]
+        cmd += ["--steps", str(args.steps), "--out", str(out), "--no-progress", *shlex.split(args.train_args)]
         cmd += ["--resume"] if (out / "metrics.csv").exists() else []  # continues, or restarts a run with no checkpoint
         core = _free_core(running, args.cores)
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -173,6 +178,9 @@ def main() -> None:
     parser.add_argument("--root", type=Path, default=Path("runs/sample-efficiency"))
     parser.add_argument("--archive", type=Path, default=Path("benchmarks/results/sample-efficiency"))
     parser.add_argument("--cores", nargs="+", default=["0", "1"], help="CPU cores to pin one run each to")
+    parser.add_argument(
+        "--train-args", default="", help="further options for every `rankgame train`, e.g. '--reward.lr 1e-4'"
+    )
     parser.add_argument("--summarize-only", action="store_true")
     args = parser.parse_args()
     if not args.summarize_only:

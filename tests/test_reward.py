@@ -27,6 +27,11 @@ def test_linear_schedule_and_limits() -> None:
     targets = target_schedule(lambda_grid(3), 0, 10, "exp", 2.0)
     assert np.all(np.diff(targets) > 0) and np.diff(targets)[0] < np.diff(targets)[-1]  # beta > 0: gaps grow
     assert targets.dtype == np.float64  # targets stay floats, never truncated
+    # beta = 2 at lambda = 1/2: 10 (e - 1) / (e^2 - 1) = 10 / (e + 1).
+    np.testing.assert_allclose(target_schedule(np.array([0.5]), 0, 10, "exp", 2.0), [10 / (np.e + 1)])
+    for beta in (-1000.0, 1000.0):  # far past where e^beta overflows: still finite, ordered, 0 to 10
+        extreme = target_schedule(lambda_grid(4), 0, 10, "exp", beta)
+        assert np.isfinite(extreme).all() and np.all(np.diff(extreme) >= 0) and extreme[[0, -1]].tolist() == [0, 10]
     with pytest.raises(ValueError, match="unknown target schedule"):
         target_schedule(np.array([0.0, 1.0]), 0, 1, "cubic")  # type: ignore[arg-type]
 

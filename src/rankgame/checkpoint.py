@@ -86,6 +86,14 @@ def load_checkpoint(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     return metadata, arrays
 
 
+def make_out_dir(out: Path) -> None:
+    """Create the run folder ``out`` (and its parents), or raise a one-line error saying why not."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RankGameError(f"cannot create the output folder {out}: {exc.strerror}") from None
+
+
 def checkpoint_to_resume(out: Path, resume: bool) -> Path | None:
     """The checkpoint a run in ``out`` continues from, or None when it starts at step 0.
 

@@ -1,4 +1,4 @@
-"""The ``rankgame`` command line: ``train``, ``expert``, ``record`` and ``experts``.
+"""The ``rankgame`` command line: ``train``, ``expert``, ``record``, ``experts`` and ``plot``.
 
 Options are generated from the config dataclasses (see :mod:`rankgame.cli_args`). A ``--preset``
 picks the defaults the other options start from, and ``--help`` shows that preset's values.
@@ -178,6 +178,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return COMMANDS[name][0](rest)
     except RankGameError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:  # a file or folder that cannot be read or written (permissions, full disk, ...)
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

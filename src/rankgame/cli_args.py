@@ -53,7 +53,12 @@ def _parser_for(annotation: Any) -> tuple[Any, dict[str, Any]]:
         inner = [a for a in args if a is not type(None)]
         if len(inner) == 1:
             base, extra = _parser_for(inner[0])
-            return lambda text: None if text.lower() == "none" else base(text), extra
+
+            def optional(text: str) -> Any:
+                return None if text.lower() == "none" else base(text)
+
+            optional.__name__ = getattr(base, "__name__", "value")  # argparse names it in "invalid int value"
+            return optional, extra
     if origin is Literal:
         return str, {"choices": list(args)}
     if origin is tuple:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import platform
+import shlex
 import sys
 import time
 from dataclasses import dataclass, field
@@ -25,6 +26,7 @@ from rankgame.checkpoint import (
     RUN_CONTROL_OPTIONS,
     checkpoint_to_resume,
     load_checkpoint,
+    make_out_dir,
     require_same_settings,
     save_checkpoint,
 )
@@ -181,16 +183,16 @@ def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any
     cfg.validate()
     out = Path(cfg.out)
     resume_from = checkpoint_to_resume(out, cfg.resume)
+    make_out_dir(out)
     env = make_env(cfg.env)
     eval_env = make_env(cfg.env)
     learner = SACLearner(env, cfg.sac, cfg.seed)
     progress = _restore(cfg, learner, resume_from) if resume_from is not None else _Progress()
     ckpt = out / CHECKPOINT_NAME
     start_step = learner.env_steps
-    out.mkdir(parents=True, exist_ok=True)
     spec = learner.spec
     logger = RunLogger(out, LOG_COLUMNS, tensorboard=cfg.tensorboard, resume_step=start_step if cfg.resume else None)
-    command = command or " ".join(sys.argv)
+    command = command or shlex.join(sys.argv)
     provenance = {"command": command, "seed": cfg.seed, "config": config_to_json(cfg)}
     metrics: dict[str, float] = {}
     start = time.perf_counter() - progress.wall_s

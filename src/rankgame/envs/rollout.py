@@ -57,15 +57,7 @@ def rollout(env: gym.Env, policy: PolicyFn, n_episodes: int, seed: int) -> list[
 
 def episode_returns(env: gym.Env, policy: PolicyFn, n_episodes: int, seed: int) -> np.ndarray:
     """Undiscounted returns ``(n_episodes,)`` of ``policy`` (see :func:`rollout` for seeding)."""
-    returns = np.zeros(n_episodes)
-    for i in range(n_episodes):
-        obs, _ = env.reset(seed=seed + i)
-        done = False
-        while not done:
-            obs, rew, terminated, truncated, _ = env.step(policy(obs))
-            returns[i] += rew
-            done = terminated or truncated
-    return returns
+    return np.array([episode.ret for episode in rollout(env, policy, n_episodes, seed)])
 
 
 def random_policy(env: gym.Env, seed: int) -> PolicyFn:

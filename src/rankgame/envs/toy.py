@@ -5,6 +5,10 @@ move to the goal at ``x = 0.5`` and stay there. Observation ``(x, goal - x)``, a
 ``[-1, 1]``, dynamics ``x' = clip(x + 0.2 a, -2, 2)``, reward ``-|x' - goal|``, 40 steps per
 episode with no early termination. :func:`point_goal_expert` is the analytic expert: a proportional
 controller that reaches the goal in at most a few steps.
+
+``rankgame/PointGoalEdge-v0``: the same task on a ledge; an episode terminates early when the point
+steps past ``|x| > 1.5``. Since every reward is negative, stepping off early is a shortcut for the
+true reward; it exercises the absorbing-state handling of early-terminated episodes.
 """
 
 from __future__ import annotations
@@ -15,9 +19,11 @@ import gymnasium as gym
 import numpy as np
 
 POINT_GOAL_ID = "rankgame/PointGoal-v0"
+POINT_GOAL_EDGE_ID = "rankgame/PointGoalEdge-v0"
 GOAL = 0.5
 STEP_SIZE = 0.2
 HORIZON = 40
+EDGE = 1.5
 
 
 class PointGoalEnv(gym.Env):
@@ -26,8 +32,9 @@ class PointGoalEnv(gym.Env):
     observation_space = gym.spaces.Box(-np.inf, np.inf, (2,), np.float32)
     action_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
 
-    def __init__(self) -> None:
+    def __init__(self, edge: float | None = None) -> None:
         self._x = 0.0
+        self._edge = edge
 
     def _obs(self) -> np.ndarray:
         return np.array([self._x, GOAL - self._x], np.float32)
@@ -40,7 +47,8 @@ class PointGoalEnv(gym.Env):
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         act = float(np.clip(np.asarray(action).reshape(-1)[0], -1.0, 1.0))
         self._x = float(np.clip(self._x + STEP_SIZE * act, -2.0, 2.0))
-        return self._obs(), -abs(self._x - GOAL), False, False, {}
+        fell = self._edge is not None and abs(self._x) > self._edge
+        return self._obs(), -abs(self._x - GOAL), fell, False, {}
 
 
 def point_goal_expert(obs: np.ndarray) -> np.ndarray:
@@ -52,3 +60,5 @@ def register_toy_envs() -> None:
     """Register the toy tasks with Gymnasium (idempotent)."""
     if POINT_GOAL_ID not in gym.registry:
         gym.register(POINT_GOAL_ID, entry_point=PointGoalEnv, max_episode_steps=HORIZON)
+    if POINT_GOAL_EDGE_ID not in gym.registry:
+        gym.register(POINT_GOAL_EDGE_ID, entry_point=PointGoalEnv, max_episode_steps=HORIZON, kwargs={"edge": EDGE})

@@ -27,6 +27,7 @@ from rankgame.checkpoint import (
     checkpoint_to_resume,
     flatten_tree,
     load_checkpoint,
+    make_out_dir,
     require_same_settings,
     save_checkpoint,
     unflatten_tree,
@@ -234,6 +235,8 @@ class RankingGame:
         if not np.isfinite(self.random_return):  # expert file without it: measure on the evaluation env
             policy = random_policy(self.eval_env, cfg.seed)
             self.random_return = float(episode_returns(self.eval_env, policy, 20, cfg.seed).mean())
+        if self.expert_return == self.random_return:
+            print("expert and random returns are equal: the normalized score is not defined", file=sys.stderr)
         self.episode = _Episode()
         self.finished: list[np.ndarray] = []
         self.reward_metrics: dict[str, float] = {}
@@ -314,11 +317,12 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
     cfg.validate()
     out = Path(cfg.out)
     ckpt = checkpoint_to_resume(out, cfg.resume)
+    make_out_dir(out)
     game = RankingGame(cfg)
-    elapsed = 0.0
+    elapsed, eval_s = 0.0, 0.0  # wall-clock seconds of the whole run and of its evaluations
     if ckpt is not None:
-        elapsed = float(game.restore(ckpt)["wall_s"])
-    out.mkdir(parents=True, exist_ok=True)
+        saved = game.restore(ckpt)
+        elapsed, eval_s = float(saved["wall_s"]), float(saved.get("eval_s", 0.0))
     command = command or shlex.join(sys.argv)
     (out / "config.json").write_text(json.dumps({"command": command, **config_to_json(cfg)}, indent=2))
     logger = RunLogger(
@@ -342,13 +346,15 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
             if step % game.n_pol == 0:
                 game.reward_turn()
             if step % cfg.eval_every == 0 or step == cfg.steps:
+                eval_start = time.perf_counter()
                 last_eval = game.evaluate()
+                eval_s += time.perf_counter() - eval_start
                 wall = time.perf_counter() - start
                 logger.log(
                     {
                         "env_steps": step,
                         "wall_s": wall,
-                        "steps_per_s": (step - start_step) / max(time.perf_counter() - start - elapsed, 1e-9),
+                        "steps_per_s": step / max(wall - eval_s, 1e-9),  # training only, as in `rankgame expert`
                         "eval_return": last_eval[0],
                         "normalized_score": last_eval[1],
                         **game.reward_metrics,
@@ -357,7 +363,7 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
                 )
                 bar.set_postfix(score=f"{last_eval[1]:.1f}", ret=f"{last_eval[0]:.0f}")
             if step % game.n_pol == 0 and (step % cfg.checkpoint_every < game.n_pol or step == cfg.steps):
-                game.save(out / CHECKPOINT_NAME, {"wall_s": time.perf_counter() - start})
+                game.save(out / CHECKPOINT_NAME, {"wall_s": time.perf_counter() - start, "eval_s": eval_s})
             bar.update(1)
     finally:
         bar.close()

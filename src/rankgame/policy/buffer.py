@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 
-CORE_FIELDS = ("obs", "acts", "next_obs", "dones")
-
 
 class ReplayBuffer:
     """Fixed-capacity ring buffer of float32 arrays in host memory.

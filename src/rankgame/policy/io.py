@@ -17,7 +17,6 @@ from rankgame.envs.rollout import PolicyFn
 from rankgame.errors import RankGameError
 from rankgame.policy.learner import make_policy_fn
 from rankgame.policy.sac import SAC, SACConfig
-from rankgame.reward.features import flag_obs
 
 POLICY_FORMAT = "rankgame-policy"
 POLICY_VERSION = 1
@@ -37,10 +36,8 @@ class SavedPolicy:
     def policy_fn(self, deterministic: bool = True, seed: int = 0) -> PolicyFn:
         """The policy as ``obs -> action`` in environment units."""
         rng = np.random.default_rng(seed)
-        policy = make_policy_fn(self.sac, self.actor_params, self.act_low, self.act_high, rng, deterministic)
-        if self.metadata.get("absorbing_flag"):  # trained by the ranking game: observations carry the flag
-            return lambda obs: policy(flag_obs(np.asarray(obs, np.float32)))
-        return policy
+        absorbing = bool(self.metadata.get("absorbing_flag"))  # trained by the ranking game
+        return make_policy_fn(self.sac, self.actor_params, self.act_low, self.act_high, rng, deterministic, absorbing)
 
 
 def save_policy(

@@ -27,7 +27,6 @@ class StepResult:
     """What one environment step produced; ``episode_return`` is set when an episode ended."""
 
     obs: np.ndarray
-    act: np.ndarray  # environment units
     act_norm: np.ndarray  # SAC's normalized box [-1, 1]
     next_obs: np.ndarray
     terminated: bool
@@ -86,7 +85,7 @@ class SACLearner:
         act = to_env_action(act_norm, self.spec.act_low, self.spec.act_high)
         next_obs, rew, terminated, truncated, _ = self.env.step(act)
         self._store(self._obs, act_norm, next_obs, bool(terminated), float(rew))
-        result = StepResult(self._obs, act, act_norm, next_obs, bool(terminated), bool(truncated))
+        result = StepResult(self._obs, act_norm, next_obs, bool(terminated), bool(truncated))
         self.env_steps += 1
         self._episode_return += float(rew)
         if terminated or truncated:
@@ -153,8 +152,8 @@ class SACLearner:
     def policy(self, deterministic: bool = True) -> PolicyFn:
         """The current policy as ``obs (obs_dim,) -> action (act_dim,)`` in environment units."""
         actor_params = self.state.actor_params
-        policy = make_policy_fn(self.sac, actor_params, self.spec.act_low, self.spec.act_high, self.rng, deterministic)
-        return (lambda obs: policy(flag_obs(np.asarray(obs, np.float32)))) if self.absorbing else policy
+        low, high = self.spec.act_low, self.spec.act_high
+        return make_policy_fn(self.sac, actor_params, low, high, self.rng, deterministic, self.absorbing)
 
 
 def make_policy_fn(
@@ -164,14 +163,21 @@ def make_policy_fn(
     act_high: np.ndarray,
     rng: np.random.Generator | None = None,
     deterministic: bool = True,
+    absorbing_flag: bool = False,
 ) -> PolicyFn:
-    """Wrap actor parameters as a :data:`PolicyFn` (mean action when deterministic)."""
+    """Wrap actor parameters as a :data:`PolicyFn` (mean action when deterministic).
+
+    With ``absorbing_flag`` (an actor trained by the ranking game) a zero absorbing flag is appended
+    to every environment observation ``(obs_dim,)`` before the actor sees it.
+    """
     zeros = np.zeros((1, sac.act_dim), np.float32)
     rng = rng if rng is not None else np.random.default_rng(0)
 
     def policy(obs: np.ndarray) -> np.ndarray:
+        obs = np.asarray(obs, np.float32)
+        obs = flag_obs(obs) if absorbing_flag else obs
         noise = zeros if deterministic else rng.standard_normal((1, sac.act_dim)).astype(np.float32)
-        act = np.asarray(sac.act(actor_params, np.asarray(obs, np.float32)[None], noise))[0]
+        act = np.asarray(sac.act(actor_params, obs[None], noise))[0]
         return to_env_action(act, act_low, act_high)
 
     return policy

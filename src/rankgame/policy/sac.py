@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any, Literal
+from typing import Any
 
 import flax.linen as nn
 import flax.struct
@@ -94,7 +94,6 @@ SAC_PRESETS: dict[str, SACConfig] = {
     "paper": SACConfig(),
     "modern": SACConfig(actor_lr=3e-4, critic_lr=3e-4, alpha_lr=3e-4, batch_size=256, init_alpha=1.0, learn_alpha=True),
 }
-SACPresetName = Literal["paper", "modern"]
 
 
 def sac_preset(name: str, **overrides: Any) -> SACConfig:
@@ -201,6 +200,8 @@ class SAC:
             the actor and temperature losses ignore rows that start in ``s_abs``. Bootstrapping the
             self-loop lets the critic carry the value of real states over to ``s_abs`` (no action
             there is ever taken by the policy), which makes terminating look as good as surviving.
+            The closed form has no entropy bonus: the policy makes no choice in ``s_abs``, just as
+            plain SAC adds none after a terminal transition.
     """
 
     obs_dim: int

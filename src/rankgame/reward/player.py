@@ -42,7 +42,8 @@ class RewardConfig:
     r_max: float = 10.0
     """Rewards given to the policy are bounded to [-r_max, r_max]."""
     holdout_fraction: float = 0.1
-    """Share of agent rows held out to decide when fitting has converged (PAL)."""
+    """Share of agent rows held out of training, at most 0.5: PAL stops fitting when their loss stops
+    improving; RAL only logs their loss."""
     patience: int = 3
     """Epochs without holdout improvement before fitting stops (PAL)."""
     min_improvement: float = 0.01
@@ -60,7 +61,7 @@ class RewardConfig:
             (self.lr > 0 and self.weight_decay >= 0, "reward lr must be positive and weight_decay >= 0"),
             (self.batch_size > 0 and self.chunk > 0, "reward batch_size and chunk must be positive"),
             (self.r_max > 0, "r_max must be positive"),
-            (0.0 <= self.holdout_fraction < 1.0, "holdout_fraction must lie in [0, 1)"),
+            (0.0 <= self.holdout_fraction <= 0.5, "holdout_fraction must lie in [0, 0.5]"),
             (self.patience > 0 and self.max_epochs > 0, "patience and max_epochs must be positive"),
             (0.0 <= self.min_improvement < 1.0, "min_improvement must lie in [0, 1)"),
         ]

@@ -43,8 +43,8 @@ class RankingData:
             raise ValueError("the mixture grid must run from 0 (agent) to 1 (expert) with one target per point")
         if np.any(np.diff(targets) < 0):
             raise ValueError("ranking targets must be non-decreasing from agent to expert")
-        if not 0.0 <= holdout_fraction < 1.0:
-            raise ValueError("holdout_fraction must lie in [0, 1)")
+        if not 0.0 <= holdout_fraction <= 0.5:
+            raise ValueError("holdout_fraction must lie in [0, 0.5]")
         self.expert = expert.astype(np.float32)
         self.lambdas = lambdas.astype(np.float32)
         self.targets = targets.astype(np.float32)

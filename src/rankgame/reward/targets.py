@@ -27,8 +27,10 @@ def target_schedule(
         raise ValueError("mixture weights must lie in [0, 1]")
     if schedule == "linear" or (schedule == "exp" and abs(beta) < 1e-12):
         frac = lambdas
-    elif schedule == "exp":
+    elif schedule == "exp" and beta < 0:
         frac = np.expm1(beta * lambdas) / np.expm1(beta)
+    elif schedule == "exp":  # the same fraction, written so that a large beta cannot overflow
+        frac = np.exp(beta * (lambdas - 1.0)) * np.expm1(-beta * lambdas) / np.expm1(-beta)
     else:
         raise ValueError(f"unknown target schedule {schedule!r}; choose linear or exp")
     return low + (high - low) * frac

@@ -38,8 +38,14 @@ def load_shipped_expert(env_id: str) -> TrajectoryFile:
 
 
 def normalized_score(ret: float | np.ndarray, expert_return: float, random_return: float) -> float | np.ndarray:
-    """``100 (R - R_random) / (R_expert - R_random)``: 0 is random, 100 is the expert."""
-    return 100.0 * (ret - random_return) / (expert_return - random_return)
+    """``100 (R - R_random) / (R_expert - R_random)``: 0 is random, 100 is the expert.
+
+    Undefined (NaN) when the expert's return equals the random return, as in data with all-zero rewards.
+    """
+    gap = np.float64(expert_return) - np.float64(random_return)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        score = 100.0 * (np.asarray(ret, np.float64) - random_return) / gap
+    return score if gap != 0 else np.full_like(score, np.nan)
 
 
 def expert_summary(data: TrajectoryFile) -> dict[str, Any]:
