@@ -132,6 +132,10 @@ def test_plot_draws_curves_and_rejects_bad_runs(tmp_path: Path) -> None:
     assert (tmp_path / "c.png").read_bytes()[:4] == b"\x89PNG"
     assert_one_line_error(run_cli("plot", str(run), "--column", "nope"), "has no column 'nope'")
     assert_one_line_error(run_cli("plot", str(tmp_path / "none")), "no metrics.csv")
+    assert_one_line_error(run_cli("plot", str(run), "--out", str(tmp_path / "c.xyz")), "cannot write a .xyz image")
+    assert not (tmp_path / "c.xyz").exists()
+    assert main(["plot", str(run), "--out", str(tmp_path / "c.svg")]) == 0
+    assert b"<svg" in (tmp_path / "c.svg").read_bytes()[:1000]
 
 
 def test_expert_run_resumes_and_trains_longer(tmp_path: Path) -> None:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rankgame.atomic import atomic_write
 from rankgame.errors import RankGameError
 
 #: A run folder name's seed suffix: ``_s0``, ``-s12``, ``__seed3``.
@@ -79,7 +80,10 @@ def plot_runs(runs: Sequence[Path], out: Path, column: str = "normalized_score",
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=120)
+    image_format = out.suffix.lstrip(".").lower()
+    if image_format not in fig.canvas.get_supported_filetypes():
+        plt.close(fig)
+        raise RankGameError(f"cannot write a {out.suffix or 'suffix-less'} image; name --out *.png, *.pdf or *.svg")
+    atomic_write(out, lambda handle: fig.savefig(handle, format=image_format, dpi=120))
     plt.close(fig)
     return out

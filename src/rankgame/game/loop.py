@@ -21,6 +21,7 @@ import jax
 import numpy as np
 from tqdm import tqdm
 
+from rankgame.atomic import atomic_write_bytes
 from rankgame.checkpoint import (
     CHECKPOINT_NAME,
     RUN_CONTROL_OPTIONS,
@@ -324,7 +325,7 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
         saved = game.restore(ckpt)
         elapsed, eval_s = float(saved["wall_s"]), float(saved.get("eval_s", 0.0))
     command = command or shlex.join(sys.argv)
-    (out / "config.json").write_text(json.dumps({"command": command, **config_to_json(cfg)}, indent=2))
+    atomic_write_bytes(out / "config.json", json.dumps({"command": command, **config_to_json(cfg)}, indent=2).encode())
     logger = RunLogger(
         out, LOG_COLUMNS, tensorboard=cfg.tensorboard, resume_step=game.learner.env_steps if cfg.resume else None
     )
