@@ -109,9 +109,15 @@ def test_normalized_score() -> None:
     assert normalized_score(10.0, 210.0, 10.0) == 0.0
 
 
+#: Mean expert return each shipped file must reach (the foundation issue's targets).
+EXPERT_RETURN_TARGETS = {"Hopper-v5": 3000, "HalfCheetah-v5": 10000, "Walker2d-v5": 4000, "Ant-v5": 4500}
+
+
 def test_every_shipped_expert_file_loads_with_its_provenance() -> None:
     envs = shipped_envs()
-    assert envs, "no expert data shipped"
+    assert set(EXPERT_RETURN_TARGETS) | {"Swimmer-v5"} <= set(envs)
+    for env_id, target in EXPERT_RETURN_TARGETS.items():
+        assert load_shipped_expert(env_id).returns.mean() >= target, env_id
     for env_id in envs:
         data = load_shipped_expert(env_id)
         assert len(data.trajectories) >= 10
