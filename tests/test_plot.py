@@ -17,6 +17,12 @@ def test_runs_are_grouped_by_name_without_the_seed_suffix() -> None:
     assert groups["Hopper__pal"] == runs[:2] and groups["plain"] == [runs[3]]
 
 
+def test_runs_of_the_same_name_in_different_folders_stay_apart() -> None:
+    runs = [Path(p) for p in ("default/Hopper__pal__s0", "lr/Hopper__pal__s0", "default/Hopper__pal__s1")]
+    groups = group_by_seed(runs)
+    assert groups == {"default/Hopper__pal": [runs[0], runs[2]], "lr/Hopper__pal": [runs[1]]}
+
+
 def test_mean_curve_uses_the_steps_every_seed_logged() -> None:
     steps, mean, std = mean_curve([([10, 20, 30], [1.0, 2.0, 6.0]), ([10, 20], [3.0, 4.0])])
     np.testing.assert_array_equal(steps, [10, 20])

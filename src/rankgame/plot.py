@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import re
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -39,11 +40,13 @@ def read_curve(run: Path, column: str) -> tuple[list[int], list[float]]:
 
 
 def group_by_seed(runs: Sequence[Path]) -> dict[str, list[Path]]:
-    """Run folders keyed by their name without its seed suffix, in the order first seen."""
-    groups: dict[str, list[Path]] = {}
-    for run in runs:
-        groups.setdefault(SEED_SUFFIX.sub("", Path(run).name), []).append(Path(run))
-    return groups
+    """Run folders grouped by their parent folder and their name without its seed suffix, in the order
+    first seen, and keyed by that name (prefixed by the parent where two parents hold the same name)."""
+    groups: dict[tuple[Path, str], list[Path]] = {}
+    for run in map(Path, runs):
+        groups.setdefault((run.parent, SEED_SUFFIX.sub("", run.name)), []).append(run)
+    names = Counter(name for _, name in groups)
+    return {(f"{parent}/{name}" if names[name] > 1 else name): group for (parent, name), group in groups.items()}
 
 
 def mean_curve(curves: Sequence[tuple[list[int], list[float]]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
