@@ -116,6 +116,18 @@ def checkpoint_to_resume(out: Path, resume: bool) -> Path | None:
     raise RankGameError(f"no checkpoint to resume from at {ckpt}")
 
 
+def load_run_checkpoint(path: Path, config: dict[str, Any], steps: int) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Load the checkpoint a run resumes from, refusing changed settings or a ``--steps`` it has passed.
+
+    ``config`` is the resumed run's config as JSON; see :func:`require_same_settings`.
+    """
+    metadata, arrays = load_checkpoint(path)
+    require_same_settings(metadata["config"], config, RUN_CONTROL_OPTIONS)
+    if steps < int(metadata["env_steps"]):
+        raise RankGameError(f"--steps {steps} is below the checkpoint's {metadata['env_steps']} steps")
+    return metadata, arrays
+
+
 def require_same_settings(saved: dict[str, Any], current: dict[str, Any], may_change: Collection[str]) -> None:
     """Refuse to resume with settings other than the checkpoint's.
 

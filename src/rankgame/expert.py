@@ -23,11 +23,9 @@ from tqdm import tqdm
 
 from rankgame.checkpoint import (
     CHECKPOINT_NAME,
-    RUN_CONTROL_OPTIONS,
     checkpoint_to_resume,
-    load_checkpoint,
+    load_run_checkpoint,
     make_out_dir,
-    require_same_settings,
     save_checkpoint,
 )
 from rankgame.cli_args import config_to_json
@@ -163,10 +161,7 @@ class _Progress:
 
 
 def _restore(cfg: ExpertConfig, learner: SACLearner, path: Path) -> _Progress:
-    metadata, arrays = load_checkpoint(path)
-    require_same_settings(metadata["config"], config_to_json(cfg), RUN_CONTROL_OPTIONS)
-    if cfg.steps < int(metadata["env_steps"]):
-        raise RankGameError(f"--steps {cfg.steps} is below the checkpoint's {metadata['env_steps']} steps")
+    metadata, arrays = load_run_checkpoint(path, config_to_json(cfg), cfg.steps)
     learner.restore(metadata, arrays, seed=cfg.seed + int(metadata["env_steps"]))
     progress = _Progress(**metadata["progress"])
     # The best policy is saved as soon as it is evaluated, possibly after the last checkpoint.

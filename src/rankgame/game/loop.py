@@ -24,12 +24,10 @@ from tqdm import tqdm
 from rankgame.atomic import atomic_write_bytes
 from rankgame.checkpoint import (
     CHECKPOINT_NAME,
-    RUN_CONTROL_OPTIONS,
     checkpoint_to_resume,
     flatten_tree,
-    load_checkpoint,
+    load_run_checkpoint,
     make_out_dir,
-    require_same_settings,
     save_checkpoint,
     unflatten_tree,
 )
@@ -301,10 +299,7 @@ class RankingGame:
         save_checkpoint(path, metadata, arrays)
 
     def restore(self, path: Path) -> dict[str, Any]:
-        metadata, arrays = load_checkpoint(path)
-        require_same_settings(metadata["config"], config_to_json(self.cfg), RUN_CONTROL_OPTIONS)
-        if self.cfg.steps < int(metadata["env_steps"]):
-            raise RankGameError(f"--steps {self.cfg.steps} is below the checkpoint's {metadata['env_steps']} steps")
+        metadata, arrays = load_run_checkpoint(path, config_to_json(self.cfg), self.cfg.steps)
         self.learner.restore(metadata, arrays, seed=self.cfg.seed + int(metadata["env_steps"]))
         self.reward_state = unflatten_tree("reward", arrays, self.reward_state)
         self.data.load_state_dict(arrays)
