@@ -49,19 +49,18 @@ def test_pal_and_ral_imitate_the_analytic_expert(method: str, toy_expert_file: P
     ("method", "setting", "reward_input"), [("rank-pal-auto", "lfd", "default"), ("rank-ral-auto", "lfo", "ss")]
 )
 def test_the_game_learns_to_stay_on_a_ledge_it_could_step_off(
-    method: str, setting: str, reward_input: str, tmp_path: Path
+    method: str, setting: str, reward_input: str, tiny_sac: SACConfig, tmp_path: Path
 ) -> None:
     """Early termination: episodes that step off the ledge are padded with the absorbing state."""
     env = make_env(POINT_GOAL_EDGE_ID)
     expert = save_trajectories(tmp_path / "edge.npz", POINT_GOAL_EDGE_ID, rollout(env, point_goal_expert, 5, seed=0))
-    sac = replace(SACConfig(), hidden_sizes=(64, 64), batch_size=64, start_steps=400, update_after=400, update_every=40)
     cfg = TrainConfig(
         env=POINT_GOAL_EDGE_ID,
         method=method,
         expert=expert,
         setting=setting,
         reward_input=reward_input,
-        sac=sac,
+        sac=tiny_sac,
         reward=replace(RewardConfig(), batch_size=256),
     )
     game = RankingGame(cfg)
