@@ -107,6 +107,7 @@ def test_corrupt_contents_are_rejected(saved: Path, tmp_path: Path) -> None:
 def test_normalized_score() -> None:
     assert normalized_score(110.0, expert_return=210.0, random_return=10.0) == pytest.approx(50.0)
     assert normalized_score(10.0, 210.0, 10.0) == 0.0
+    assert np.isnan(normalized_score(5.0, expert_return=0.0, random_return=0.0))  # undefined, not an exception
 
 
 #: Mean expert return each shipped file must reach (the foundation issue's targets).
