@@ -42,10 +42,10 @@ def normalized_score(ret: float | np.ndarray, expert_return: float, random_retur
 
     Undefined (NaN) when the expert's return equals the random return, as in data with all-zero rewards.
     """
-    gap = np.float64(expert_return) - np.float64(random_return)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        score = 100.0 * (np.asarray(ret, np.float64) - random_return) / gap
-    return score if gap != 0 else np.full_like(score, np.nan)
+    ret = np.asarray(ret, np.float64)
+    if expert_return == random_return:
+        return np.full_like(ret, np.nan)
+    return 100.0 * (ret - random_return) / (expert_return - random_return)
 
 
 def expert_summary(data: TrajectoryFile) -> dict[str, Any]:
