@@ -171,3 +171,38 @@ def test_expert_resume_keeps_a_best_policy_saved_after_its_last_checkpoint(tmp_p
     assert resumed.returncode == 0, resumed.stderr
     summary = json.loads(resumed.stdout)
     assert summary["best_step"] == best["env_steps"] and summary["best_eval_return"] == best["eval_return"]
+
+
+def test_evaluate_reports_the_policy_return_and_its_normalized_score(tmp_path: Path, toy_expert_file: Path) -> None:
+    import jax
+
+    from rankgame.data.experts import shipped_expert_path
+    from rankgame.envs.make import env_spec, make_env
+    from rankgame.envs.rollout import episode_returns
+    from rankgame.envs.toy import POINT_GOAL_ID
+    from rankgame.policy.io import save_policy
+    from rankgame.policy.sac import SAC, sac_preset
+
+    env = make_env(POINT_GOAL_ID)
+    spec = env_spec(env)
+    sac = SAC(spec.obs_dim, spec.act_dim, sac_preset("paper", hidden_sizes=(8, 8)))
+    params = sac.init(jax.random.key(3)).actor_params
+    path = save_policy(tmp_path / "p.msgpack", sac, params, POINT_GOAL_ID, spec.act_low, spec.act_high)
+    args = ("--policy", str(path), "--episodes", "3", "--seed", "5", "--expert", str(toy_expert_file))
+    result = run_cli("evaluate", *args)
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    expected = episode_returns(env, load_policy(path).policy_fn(), 3, seed=5)
+    expert = load_trajectories(toy_expert_file)
+    expert_return, random_return = expert.returns.mean(), expert.metadata["random_return_mean"]
+    assert summary["env"] == POINT_GOAL_ID and summary["episodes"] == 3
+    assert summary["return_mean"] == pytest.approx(expected.mean(), rel=1e-6)
+    assert summary["return_min"] == pytest.approx(expected.min(), rel=1e-6)
+    assert summary["normalized_score"] == pytest.approx(
+        100 * (expected.mean() - random_return) / (expert_return - random_return), rel=1e-6
+    )
+    # No shipped data for the toy task and no --expert: the score is not defined.
+    assert json.loads(run_cli("evaluate", "--policy", str(path), "--episodes", "1").stdout)["normalized_score"] is None
+    assert_one_line_error(run_cli("evaluate", "--policy", str(path), "--episodes", "0"), "--episodes must be positive")
+    other = run_cli("evaluate", "--policy", str(path), "--expert", str(shipped_expert_path("Hopper-v5")))
+    assert_one_line_error(other, "recorded on Hopper-v5")

@@ -1,4 +1,4 @@
-"""The ``rankgame`` command line: ``train``, ``expert``, ``record``, ``experts`` and ``plot``.
+"""The ``rankgame`` command line: ``train``, ``evaluate``, ``expert``, ``record``, ``experts`` and ``plot``.
 
 Options are generated from the config dataclasses (see :mod:`rankgame.cli_args`). A ``--preset``
 picks the defaults the other options start from, and ``--help`` shows that preset's values.
@@ -111,6 +111,15 @@ def _cmd_record(argv: Sequence[str]) -> int:
     return 0
 
 
+def _cmd_evaluate(argv: Sequence[str]) -> int:
+    from rankgame.evaluate import EvaluateConfig, evaluate_policy
+
+    parser = _Parser(prog=f"{PROG} evaluate", description="Return and normalized score of a saved policy.")
+    add_dataclass_options(parser, EvaluateConfig())
+    print(json.dumps(evaluate_policy(dataclass_from_args(parser.parse_args(argv), EvaluateConfig())), indent=2))
+    return 0
+
+
 def _cmd_experts(argv: Sequence[str]) -> int:
     from rankgame.data.experts import expert_table
 
@@ -151,6 +160,7 @@ def _cmd_plot(argv: Sequence[str]) -> int:
 
 COMMANDS = {
     "train": (_cmd_train, "imitate an expert with the ranking game (rank-pal-auto, rank-ral-auto, ...)"),
+    "evaluate": (_cmd_evaluate, "roll out a saved policy: return and normalized score"),
     "expert": (_cmd_expert, "train a SAC expert on the true reward and record its trajectories"),
     "record": (_cmd_record, "record trajectories of a saved policy"),
     "experts": (_cmd_experts, "list the shipped expert data"),

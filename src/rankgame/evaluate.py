@@ -1,0 +1,83 @@
+"""``rankgame evaluate``: the true return and normalized score of a saved policy.
+
+The policy is rolled out on its own task for a number of episodes (episode ``i`` reset with
+``seed + i``), deterministically by default, as the training loop's evaluations do. Scores are
+normalized with the expert and random returns of an expert data file: ``--expert FILE``, or the
+shipped data of the policy's task when there is any.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rankgame.data.experts import EXPERT_DIR, normalized_score
+from rankgame.data.trajectories import load_trajectories
+from rankgame.envs.make import make_env
+from rankgame.envs.rollout import rollout
+from rankgame.errors import RankGameError
+from rankgame.policy.io import load_policy
+
+
+@dataclass(frozen=True)
+class EvaluateConfig:
+    """Options of ``rankgame evaluate``."""
+
+    policy: Path = Path("runs/train/policy.msgpack")
+    """Saved policy (written by rankgame train or rankgame expert)."""
+    episodes: int = 10
+    """Episodes to roll out."""
+    seed: int = 0
+    """Seed of the first episode's reset (episode i uses seed + i)."""
+    stochastic: bool = False
+    """Sample actions from the policy instead of taking its mean action."""
+    expert: Path | None = None
+    """Expert data whose expert and random returns normalize the score (default: the shipped data of the task)."""
+
+    def validate(self) -> None:
+        if self.episodes <= 0:
+            raise RankGameError(f"--episodes must be positive (got {self.episodes})")
+        if self.seed < 0:
+            raise RankGameError(f"--seed must be >= 0 (got {self.seed})")
+
+
+def evaluate_policy(cfg: EvaluateConfig) -> dict[str, Any]:
+    """Roll out the policy and summarize its returns ``(episodes,)``; ``normalized_score`` is None
+    when no expert data is known for the task."""
+    cfg.validate()
+    saved = load_policy(cfg.policy)
+    expert_path = cfg.expert
+    if expert_path is None and (EXPERT_DIR / f"{saved.env_id}.npz").is_file():
+        expert_path = EXPERT_DIR / f"{saved.env_id}.npz"
+    expert = load_trajectories(expert_path, env_id=saved.env_id) if expert_path is not None else None
+
+    env = make_env(saved.env_id)
+    episodes = rollout(env, saved.policy_fn(deterministic=not cfg.stochastic, seed=cfg.seed), cfg.episodes, cfg.seed)
+    env.close()
+    returns = np.array([episode.ret for episode in episodes])
+    summary: dict[str, Any] = {
+        "env": saved.env_id,
+        "policy": str(cfg.policy),
+        "episodes": cfg.episodes,
+        "deterministic": not cfg.stochastic,
+        "return_mean": float(returns.mean()),
+        "return_std": float(returns.std()),
+        "return_min": float(returns.min()),
+        "return_max": float(returns.max()),
+        "mean_length": float(np.mean([len(episode) for episode in episodes])),
+        "normalized_score": None,
+    }
+    if expert is not None:
+        expert_return = float(expert.returns.mean())
+        random_return = float(expert.metadata.get("random_return_mean", np.nan))
+        score = float(normalized_score(summary["return_mean"], expert_return, random_return))
+        summary.update(
+            normalized_score=score if np.isfinite(score) else None,
+            expert_file=str(expert_path),
+            expert_return=expert_return,
+            random_return=random_return if np.isfinite(random_return) else None,
+        )
+    return summary
