@@ -88,6 +88,12 @@ def test_every_method_runs(toy_expert_file: Path, tmp_path: Path) -> None:
             assert np.isfinite(float(last[column])), (method, column, last)
 
 
+def test_termination_option_reaches_the_learner(toy_expert_file: Path) -> None:
+    for termination, absorbing_transitions in (("absorbing", True), ("done", False)):
+        game = RankingGame(TrainConfig(env="rankgame/PointGoal-v0", expert=toy_expert_file, termination=termination))
+        assert game.learner.absorbing and game.learner.absorbing_transitions == absorbing_transitions
+
+
 def test_a_checkpoint_restores_every_piece_of_the_game(toy_expert_file: Path, tmp_path: Path) -> None:
     cfg = TrainConfig(
         env="rankgame/PointGoal-v0",

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -165,3 +167,26 @@ def test_same_seed_gives_identical_numbers(tiny_sac: SACConfig) -> None:
     np.testing.assert_array_equal(
         episode_returns(env, first.policy(), 3, seed=0), episode_returns(env, second.policy(), 3, seed=0)
     )
+
+
+@pytest.mark.parametrize("absorbing_transitions", [True, False])
+def test_a_terminal_step_is_stored_as_the_termination_mode_says(
+    absorbing_transitions: bool, tiny_sac: SACConfig
+) -> None:
+    """Absorbing: s -> s_abs and s_abs -> s_abs, no terminal mask. Done: s -> s' with a terminal mask."""
+    cfg = replace(tiny_sac, start_steps=10_000)  # uniformly random actions: steps off the ledge quickly
+    env = make_env("rankgame/PointGoalEdge-v0")
+    learner = SACLearner(env, cfg, seed=0, absorbing=True, absorbing_transitions=absorbing_transitions)
+    while not learner.env_step().terminated:
+        pass
+    rows = {name: values[: learner.buffer.size] for name, values in learner.buffer.data.items()}
+    flags_in, flags_out = rows["obs"][:, -1], rows["next_obs"][:, -1]
+    if absorbing_transitions:
+        assert learner.buffer.size == learner.env_steps + 1  # the self-loop row
+        np.testing.assert_array_equal(flags_out[-2:], [1.0, 1.0])
+        np.testing.assert_array_equal(flags_in[-2:], [0.0, 1.0])
+        assert not rows["dones"].any()
+    else:
+        assert learner.buffer.size == learner.env_steps
+        assert not flags_in.any() and not flags_out.any()
+        np.testing.assert_array_equal(rows["dones"], [0.0] * (learner.env_steps - 1) + [1.0])

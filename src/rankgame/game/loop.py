@@ -82,6 +82,9 @@ class TrainConfig:
     """Targets of the auto mixtures: linear or exp."""
     beta: float = -1.0
     """Temperature of the exp schedule (the paper uses -1; -2 for Ant)."""
+    termination: Literal["absorbing", "done"] = "absorbing"
+    """How SAC treats an early-terminated episode: absorbing (DAC-style absorbing state whose value
+    follows the learned reward) or done (a terminal mask: ending is worth 0, as in the authors' code)."""
     interpolations: int = 4
     """Interior mixtures between agent and expert (auto rankings): 4 gives lambda = 0, 0.2, ..., 1."""
     policy_updates: int | None = None
@@ -211,7 +214,13 @@ class RankingGame:
         )
         # SAC relabels its batches with the reward player's current reward.
         self.learner = SACLearner(
-            self.env, cfg.sac, cfg.seed, reward_fn=self.player.reward_fn, store_env_reward=False, absorbing=True
+            self.env,
+            cfg.sac,
+            cfg.seed,
+            reward_fn=self.player.reward_fn,
+            store_env_reward=False,
+            absorbing=True,
+            absorbing_transitions=cfg.termination == "absorbing",
         )
         self.reward_state = self.player.init(jax.random.fold_in(jax.random.key(cfg.seed), 1))
         self.rng = np.random.default_rng([cfg.seed, 1])

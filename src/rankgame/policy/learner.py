@@ -48,6 +48,10 @@ class SACLearner:
             an absorbing flag, and a terminal step is stored as ``s -> s_abs`` followed by the
             self-loop ``s_abs -> s_abs``, neither with a terminal mask; SAC values ending an
             episode at exactly ``r(s_abs) / (1 - gamma)`` with the current learned reward.
+        absorbing_transitions: with ``absorbing``, store the absorbing transitions above (default);
+            if False, observations keep their (zero) flag but a terminal step is stored with a
+            terminal mask, so ending an episode is worth exactly 0 whatever the learned reward
+            (the authors' code's handling, kept for comparison).
     """
 
     def __init__(
@@ -58,11 +62,13 @@ class SACLearner:
         reward_fn: RewardFn = env_reward,
         store_env_reward: bool = True,
         absorbing: bool = False,
+        absorbing_transitions: bool = True,
     ) -> None:
         self.env = env
         self.spec = env_spec(env)
         self.config = config
         self.absorbing = absorbing
+        self.absorbing_transitions = absorbing and absorbing_transitions
         sac_obs_dim = self.spec.obs_dim + int(absorbing)
         self.sac = SAC(sac_obs_dim, self.spec.act_dim, config, reward_fn=reward_fn, absorbing=absorbing)
         self.state: SACState = self.sac.init(jax.random.key(seed))
@@ -123,8 +129,9 @@ class SACLearner:
         if not self.absorbing:
             self.buffer.add(obs=obs, acts=act_norm, next_obs=next_obs, dones=float(terminated), **extra)
             return
-        if not terminated:
-            self.buffer.add(obs=flag_obs(obs), acts=act_norm, next_obs=flag_obs(next_obs), dones=0.0, **extra)
+        if not terminated or not self.absorbing_transitions:
+            done = float(terminated)
+            self.buffer.add(obs=flag_obs(obs), acts=act_norm, next_obs=flag_obs(next_obs), dones=done, **extra)
             return
         s_abs = absorbing_obs(self.spec.obs_dim)
         self.buffer.add(obs=flag_obs(obs), acts=act_norm, next_obs=s_abs, dones=0.0, **extra)
