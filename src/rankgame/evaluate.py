@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from rankgame.data.experts import EXPERT_DIR, normalized_score
+from rankgame.data.experts import normalized_score, shipped_envs, shipped_expert_path
 from rankgame.data.trajectories import load_trajectories
 from rankgame.envs.make import make_env
 from rankgame.envs.rollout import rollout
@@ -50,8 +50,8 @@ def evaluate_policy(cfg: EvaluateConfig) -> dict[str, Any]:
     cfg.validate()
     saved = load_policy(cfg.policy)
     expert_path = cfg.expert
-    if expert_path is None and (EXPERT_DIR / f"{saved.env_id}.npz").is_file():
-        expert_path = EXPERT_DIR / f"{saved.env_id}.npz"
+    if expert_path is None and saved.env_id in shipped_envs():
+        expert_path = shipped_expert_path(saved.env_id)
     expert = load_trajectories(expert_path, env_id=saved.env_id) if expert_path is not None else None
 
     env = make_env(saved.env_id)
