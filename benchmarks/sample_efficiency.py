@@ -158,13 +158,15 @@ def summarize(args: argparse.Namespace, all_scores: RunScores) -> list[dict]:
 
 def per_run(args: argparse.Namespace, all_scores: RunScores) -> list[dict]:
     """For every finished run: the first step whose score reaches ``--threshold``, and the median, minimum
-    and maximum of the evaluations in the second half of the run (how steady the imitation stays)."""
+    and maximum of the evaluations in the second half of the run (how steady the imitation stays); a run
+    longer than ``--steps`` is read up to ``--steps``."""
     rows = []
     for (env, method, seed), scores in all_scores.items():
         if max(scores, default=0) < args.steps:
             continue
-        late = [score for step, score in scores.items() if step >= args.steps // 2]
-        reached = [step for step, score in sorted(scores.items()) if score >= args.threshold]
+        within = {step: score for step, score in sorted(scores.items()) if step <= args.steps}
+        late = [score for step, score in within.items() if step >= args.steps // 2]
+        reached = [step for step, score in within.items() if score >= args.threshold]
         rows.append(
             {
                 "env": env,

@@ -237,6 +237,8 @@ def test_bad_training_input_gives_one_line_errors(toy_expert_file: Path, tmp_pat
     _one_line_error([*base, "--expert", str(toy_expert_file), "--reward.lr", "inf"], "reward lr must be finite")
     too_much_holdout = [*base, "--expert", str(toy_expert_file), "--reward.holdout-fraction", "0.9"]
     _one_line_error(too_much_holdout, "holdout_fraction must lie in [0, 0.5]")
+    no_ral_updates = [*base, "--expert", str(toy_expert_file), "--reward.ral-passes", "0"]
+    _one_line_error(no_ral_updates, "ral_passes must be positive")
     _one_line_error([*base, "--expert", str(toy_expert_file), "--policy-updates", "abc"], "invalid int value: 'abc'")
     not_a_folder = tmp_path / "file.txt"
     not_a_folder.write_text("")

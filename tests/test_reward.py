@@ -173,3 +173,23 @@ def test_real_states_are_counted_without_absorbing_padding() -> None:
     restored = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.5, flag_index=1)
     restored.load_state_dict(data.state_dict())
     assert restored.n_real_states == 6 and len(restored.holdout_rows) == held
+
+
+@pytest.mark.parametrize(("passes", "expected"), [(1.0, 2), (2.5, 4), (0.01, 1)])
+def test_ral_budget_is_passes_over_the_real_agent_states(
+    monkeypatch: pytest.MonkeyPatch, passes: float, expected: int
+) -> None:
+    # 3 trajectories x 400 real steps (+ 100 absorbing each), batch 800: |D| = 1200 real states, so
+    # one pass is ceil(1200 / 800) = 2 gradient steps and 2.5 passes are 3000 / 800 -> 4.
+    from rankgame.game.leaders import fit_reward
+
+    horizon = 500
+    traj = np.zeros((horizon, 2), np.float32)
+    traj[400:, 1] = 1.0  # the absorbing flag marks the padding
+    data = RankingData(np.zeros((1, horizon, 2), np.float32), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.1, 1)
+    data.add([traj] * 3, np.random.default_rng(0))
+    player = RewardPlayer(2, "s", "regression", RewardConfig(batch_size=800, ral_passes=passes))
+    asked: list[int] = []
+    monkeypatch.setattr(player, "fit_steps", lambda state, data, n, rng: (asked.append(n), (state, 0.0))[1])
+    fit_reward("ral", player, player.init(jax.random.key(0)), data, np.random.default_rng(1))
+    assert asked == [expected]

@@ -2,12 +2,14 @@
 
 * PAL (policy as leader): the reward is fit *to convergence* on the current iteration's agent data
   only, judged by a shuffled holdout (Alg. 2).
-* RAL (reward as leader): the reward is fit on *all* agent data so far, with ``|D| / batch`` gradient
-  steps per iteration (Alg. 3), rounded up to whole fused chunks (``RewardConfig.chunk``, 8 steps).
-  ``|D|`` counts the real agent states collected so far, not the absorbing states that pad short
-  episodes: padding would multiply the budget of an early phase full of short episodes by up to
-  H / (episode length) without adding information. RAL holds out the same shuffled share of agent
-  rows (time steps) as PAL (``holdout_fraction``), only to log a holdout loss; it trains on the rest.
+* RAL (reward as leader): the reward is fit on *all* agent data so far, with ``n_rew = |D| / batch``
+  gradient steps per iteration (Alg. 3, Table 4), times ``RewardConfig.ral_passes`` and rounded up to
+  whole fused chunks (``RewardConfig.chunk``, 8 steps). ``|D|`` counts the real agent states collected
+  so far, not the absorbing states that pad short episodes: padding would multiply the budget of an
+  early phase full of short episodes by up to H / (episode length) without adding information. Each
+  gradient step draws one mixture per sampled state, so with the default grid one pass covers a sixth
+  of the mixtures. RAL holds out the same shuffled share of agent rows (time steps) as PAL
+  (``holdout_fraction``), only to log a holdout loss; it trains on the rest.
 """
 
 from __future__ import annotations
@@ -36,7 +38,8 @@ def fit_reward(
     """One reward-player turn with the leader's budget."""
     if leader == "pal":
         return player.fit_until_converged(state, data, rng)
-    n_updates = max(1, math.ceil(data.n_real_states / player.config.batch_size))
+    cfg = player.config
+    n_updates = max(1, math.ceil(cfg.ral_passes * data.n_real_states / cfg.batch_size))
     state, train_loss = player.fit_steps(state, data, n_updates, rng)
     return state, {
         "reward/train_loss": train_loss,

@@ -50,6 +50,9 @@ class RewardConfig:
     """Relative decrease of the holdout loss that counts as an improvement (PAL)."""
     max_epochs: int = 50
     """Upper bound on epochs per fit (PAL)."""
+    ral_passes: float = 1.0
+    """Passes over the agent data per iteration (RAL): n_rew = ral_passes |D| / batch_size gradient
+    steps, |D| = real agent states so far (each step draws one mixture per sampled state)."""
     chunk: int = 8
     """Gradient steps fused into one jitted call."""
 
@@ -63,6 +66,7 @@ class RewardConfig:
             (self.r_max > 0, "r_max must be positive"),
             (0.0 <= self.holdout_fraction <= 0.5, "holdout_fraction must lie in [0, 0.5]"),
             (self.patience > 0 and self.max_epochs > 0, "patience and max_epochs must be positive"),
+            (self.ral_passes > 0, "ral_passes must be positive"),
             (0.0 <= self.min_improvement < 1.0, "min_improvement must lie in [0, 1)"),
         ]
         require(checks)
