@@ -44,3 +44,16 @@ def test_a_resumed_run_may_change_only_its_run_control_options() -> None:
         require_same_settings(saved, {**saved, "k": 5.0}, RUN_CONTROL_OPTIONS)
     with pytest.raises(RankGameError, match=r"^--expert x.npz differs from the checkpoint's \(not given\)"):
         require_same_settings({**saved, "expert": None}, {**saved, "expert": "x.npz"}, RUN_CONTROL_OPTIONS)
+
+
+def test_an_option_added_after_the_checkpoint_is_accepted_at_its_default() -> None:
+    saved = {"steps": 1000, "k": 10.0, "reward": {"lr": 1e-3}}  # written before `termination` and `ral_passes`
+    defaults = {"steps": 300_000, "k": 10.0, "termination": "absorbing", "reward": {"lr": 1e-3, "ral_passes": 1.0}}
+    same = {**saved, "termination": "absorbing", "reward": {"lr": 1e-3, "ral_passes": 1.0}}
+    require_same_settings(saved, same, RUN_CONTROL_OPTIONS, defaults)  # no error
+    with pytest.raises(RankGameError, match=r"^--termination done differs from the checkpoint's \(not given\)"):
+        require_same_settings(saved, {**same, "termination": "done"}, RUN_CONTROL_OPTIONS, defaults)
+    with pytest.raises(RankGameError, match=r"^--reward.ral-passes 6.0 differs"):
+        require_same_settings(saved, {**same, "reward": {"lr": 1e-3, "ral_passes": 6.0}}, RUN_CONTROL_OPTIONS, defaults)
+    with pytest.raises(RankGameError, match=r"differs from the checkpoint.s \(not given\)"):  # no defaults
+        require_same_settings(saved, same, RUN_CONTROL_OPTIONS)

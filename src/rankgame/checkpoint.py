@@ -116,29 +116,39 @@ def checkpoint_to_resume(out: Path, resume: bool) -> Path | None:
     raise RankGameError(f"no checkpoint to resume from at {ckpt}")
 
 
-def load_run_checkpoint(path: Path, config: dict[str, Any], steps: int) -> tuple[dict[str, Any], dict[str, Any]]:
+def load_run_checkpoint(
+    path: Path, config: dict[str, Any], defaults: dict[str, Any], steps: int
+) -> tuple[dict[str, Any], dict[str, Any]]:
     """Load the checkpoint a run resumes from, refusing changed settings or a ``--steps`` it has passed.
 
-    ``config`` is the resumed run's config as JSON; see :func:`require_same_settings`.
+    ``config`` is the resumed run's config as JSON and ``defaults`` the default config of its command;
+    see :func:`require_same_settings`.
     """
     metadata, arrays = load_checkpoint(path)
-    require_same_settings(metadata["config"], config, RUN_CONTROL_OPTIONS)
+    require_same_settings(metadata["config"], config, RUN_CONTROL_OPTIONS, defaults)
     if steps < int(metadata["env_steps"]):
         raise RankGameError(f"--steps {steps} is below the checkpoint's {metadata['env_steps']} steps")
     return metadata, arrays
 
 
-def require_same_settings(saved: dict[str, Any], current: dict[str, Any], may_change: Collection[str]) -> None:
+def require_same_settings(
+    saved: dict[str, Any], current: dict[str, Any], may_change: Collection[str], defaults: dict[str, Any] | None = None
+) -> None:
     """Refuse to resume with settings other than the checkpoint's.
 
     ``saved`` and ``current`` are a run's config as JSON (nested dicts for ``sac`` and ``reward``);
     every option must be equal except the top-level ones in ``may_change`` (how long the run goes,
-    how often it evaluates and checkpoints, what it displays). Raises :class:`RankGameError` naming
-    the first option that differs.
+    how often it evaluates and checkpoints, what it displays). An option the checkpoint does not record
+    (one added in a later version of rankgame) is accepted at its value in ``defaults``, the behaviour
+    of the version that wrote the checkpoint. Raises :class:`RankGameError` naming the first option
+    that differs.
     """
     flat_saved, flat_current = _flatten_options(saved), _flatten_options(current)
+    flat_defaults = _flatten_options(defaults or {})
     for name in sorted(set(flat_saved) | set(flat_current)):
         if name.split(".")[0] in may_change:
+            continue
+        if name not in flat_saved and name in flat_defaults and flat_current.get(name) == flat_defaults[name]:
             continue
         was, now = flat_saved.get(name), flat_current.get(name)
         if was != now:

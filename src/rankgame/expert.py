@@ -161,7 +161,7 @@ class _Progress:
 
 
 def _restore(cfg: ExpertConfig, learner: SACLearner, path: Path) -> _Progress:
-    metadata, arrays = load_run_checkpoint(path, config_to_json(cfg), cfg.steps)
+    metadata, arrays = load_run_checkpoint(path, config_to_json(cfg), config_to_json(ExpertConfig()), cfg.steps)
     learner.restore(metadata, arrays, seed=cfg.seed + int(metadata["env_steps"]))
     progress = _Progress(**metadata["progress"])
     # The best policy is saved as soon as it is evaluated, possibly after the last checkpoint.

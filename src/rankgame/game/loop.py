@@ -308,7 +308,9 @@ class RankingGame:
         save_checkpoint(path, metadata, arrays)
 
     def restore(self, path: Path) -> dict[str, Any]:
-        metadata, arrays = load_run_checkpoint(path, config_to_json(self.cfg), self.cfg.steps)
+        metadata, arrays = load_run_checkpoint(
+            path, config_to_json(self.cfg), config_to_json(TrainConfig()), self.cfg.steps
+        )
         self.learner.restore(metadata, arrays, seed=self.cfg.seed + int(metadata["env_steps"]))
         self.reward_state = unflatten_tree("reward", arrays, self.reward_state)
         self.data.load_state_dict(arrays)
