@@ -153,8 +153,12 @@ def _cmd_plot(argv: Sequence[str]) -> int:
         help="one curve per group of runs whose names differ only in a seed suffix (_s0, -seed1): "
         "the mean over seeds with a one-standard-deviation band",
     )
+    parser.add_argument(
+        "--labels", nargs="+", help="legend names, one per curve in order (default: the run or group folder names)"
+    )
+    parser.add_argument("--title", help="title above the plot")
     args = parser.parse_args(argv)
-    print(plot_runs(args.runs, args.out, args.column, seeds=args.seeds))
+    print(plot_runs(args.runs, args.out, args.column, seeds=args.seeds, labels=args.labels, title=args.title))
     return 0
 
 

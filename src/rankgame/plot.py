@@ -57,8 +57,22 @@ def mean_curve(curves: Sequence[tuple[list[int], list[float]]]) -> tuple[np.ndar
     return np.asarray(common), table.mean(axis=0), table.std(axis=0)
 
 
-def plot_runs(runs: Sequence[Path], out: Path, column: str = "normalized_score", seeds: bool = False) -> Path:
-    """Draw ``column`` against environment steps for every run (or every group of seeds) into ``out``."""
+def plot_runs(
+    runs: Sequence[Path],
+    out: Path,
+    column: str = "normalized_score",
+    seeds: bool = False,
+    labels: Sequence[str] | None = None,
+    title: str | None = None,
+) -> Path:
+    """Draw ``column`` against environment steps for every run (or every group of seeds) into ``out``.
+
+    ``labels``, if given, names the curves in order: one per run, or one per group of seeds.
+    """
+    curves = list(group_by_seed(runs).items()) if seeds else [(Path(run).name, [Path(run)]) for run in runs]
+    if labels is not None and len(labels) != len(curves):
+        unit = "group of seeds" if seeds else "run"
+        raise RankGameError(f"got {len(labels)} labels for {len(curves)} curves (one label per {unit})")
     try:
         import matplotlib
 
@@ -67,17 +81,20 @@ def plot_runs(runs: Sequence[Path], out: Path, column: str = "normalized_score",
     except ImportError:
         raise RankGameError("plotting needs matplotlib: pip install 'rankgame[plot]'") from None
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    if seeds:
-        for name, group in group_by_seed(runs).items():
+    for index, (name, group) in enumerate(curves):
+        label = labels[index] if labels is not None else name
+        if seeds:
             steps, mean, std = mean_curve([read_curve(run, column) for run in group])
             if len(steps) == 0:
+                plt.close(fig)
                 raise RankGameError(f"the runs of {name} share no logged step")
-            (line,) = ax.plot(steps, mean, label=f"{name} ({len(group)} seed{'s' if len(group) > 1 else ''})")
+            (line,) = ax.plot(steps, mean, label=f"{label} ({len(group)} seed{'s' if len(group) > 1 else ''})")
             ax.fill_between(steps, mean - std, mean + std, color=line.get_color(), alpha=0.2)
-    else:
-        for run in runs:
-            steps, values = read_curve(Path(run), column)
-            ax.plot(steps, values, label=Path(run).name)
+        else:
+            steps, values = read_curve(group[0], column)
+            ax.plot(steps, values, label=label)
+    if title:
+        ax.set_title(title)
     ax.set_xlabel("environment steps")
     ax.set_ylabel(column)
     ax.grid(alpha=0.3)
