@@ -1,8 +1,10 @@
-"""Shared fixtures: small SAC settings that compile and run in seconds."""
+"""Shared fixtures (small SAC settings that compile and run in seconds) and command-line helpers."""
 
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 import tempfile
 
 # Share compiled XLA programs between the many small runs (and subprocesses) of the test suite.
@@ -65,3 +67,18 @@ TOY_TRAIN_ARGS = (
     "--no-progress",
     "--no-tensorboard",
 )
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    """Run ``rankgame`` as a user would, in a fresh process."""
+    return subprocess.run(
+        [sys.executable, "-m", "rankgame.cli", *args], capture_output=True, text=True, timeout=300, check=False
+    )
+
+
+def assert_one_line_error(result: subprocess.CompletedProcess[str], fragment: str) -> None:
+    assert result.returncode != 0
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("rankgame") and fragment in lines[0], lines[0]
+    assert "Traceback" not in result.stderr

@@ -3,31 +3,15 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from conftest import assert_one_line_error, run_cli
 
 from rankgame.checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
 from rankgame.cli import main
 from rankgame.data.trajectories import load_trajectories
 from rankgame.policy.io import load_policy
-
-
-def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
-    """Run ``rankgame`` as a user would, in a fresh process."""
-    return subprocess.run(
-        [sys.executable, "-m", "rankgame.cli", *args], capture_output=True, text=True, timeout=300, check=False
-    )
-
-
-def assert_one_line_error(result: subprocess.CompletedProcess[str], fragment: str) -> None:
-    assert result.returncode != 0
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1, result.stderr
-    assert lines[0].startswith("rankgame") and fragment in lines[0], lines[0]
-    assert "Traceback" not in result.stderr
 
 
 def test_help_lists_commands_and_options(capsys: pytest.CaptureFixture[str]) -> None:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import TOY_TRAIN_ARGS
+from conftest import TOY_TRAIN_ARGS, assert_one_line_error, run_cli
 
 from rankgame.checkpoint import flatten_tree
 from rankgame.cli import main
@@ -198,9 +198,7 @@ def test_an_existing_run_is_not_overwritten(toy_expert_file: Path, tmp_path: Pat
 
 
 def _one_line_error(args: list[str], fragment: str) -> None:
-    result = subprocess.run([sys.executable, "-m", "rankgame.cli", *args], capture_output=True, text=True, timeout=120)
-    lines = result.stderr.strip().splitlines()
-    assert result.returncode != 0 and len(lines) == 1 and fragment in lines[0], result.stderr
+    assert_one_line_error(run_cli(*args), fragment)
 
 
 def test_bad_training_input_gives_one_line_errors(toy_expert_file: Path, tmp_path: Path) -> None:

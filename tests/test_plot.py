@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from test_cli import assert_one_line_error, run_cli
+from conftest import assert_one_line_error, run_cli
 
 from rankgame.cli import main
 from rankgame.plot import group_by_seed, mean_curve
@@ -51,11 +51,8 @@ def test_plot_labels_name_the_curves_and_must_match_their_number(tmp_path: Path)
         (run / "metrics.csv").write_text("env_steps,normalized_score\n1000,1\n2000,2\n")
         runs.append(str(run))
     out = tmp_path / "labelled.svg"
-    matplotlib.rcParams["svg.fonttype"] = "none"  # keep legend text as text, so it can be read back
-    try:
+    with matplotlib.rc_context({"svg.fonttype": "none"}):  # keep legend text as text, so it can be read back
         assert main(["plot", *runs, "--seeds", "--labels", "first", "second", "--title", "T", "--out", str(out)]) == 0
-    finally:
-        matplotlib.rcParams["svg.fonttype"] = "path"
     svg = out.read_text()
     assert "first (2 seeds)" in svg and "second (1 seed)" in svg and ">T<" in svg
     assert_one_line_error(run_cli("plot", *runs, "--labels", "x", "y"), "got 2 labels for 3 curves (one label per run)")

@@ -69,10 +69,22 @@ def plot_runs(
 
     ``labels``, if given, names the curves in order: one per run, or one per group of seeds.
     """
-    curves = list(group_by_seed(runs).items()) if seeds else [(Path(run).name, [Path(run)]) for run in runs]
-    if labels is not None and len(labels) != len(curves):
+    groups = list(group_by_seed(runs).items()) if seeds else [(Path(run).name, [Path(run)]) for run in runs]
+    if labels is not None and len(labels) != len(groups):
         unit = "group of seeds" if seeds else "run"
-        raise RankGameError(f"got {len(labels)} labels for {len(curves)} curves (one label per {unit})")
+        raise RankGameError(f"got {len(labels)} labels for {len(groups)} curves (one label per {unit})")
+    # Read every curve before drawing, so that a bad run fails before a figure is made.
+    curves = []
+    for index, (name, group) in enumerate(groups):
+        label = labels[index] if labels is not None else name
+        if seeds:
+            steps, mean, std = mean_curve([read_curve(run, column) for run in group])
+            if len(steps) == 0:
+                raise RankGameError(f"the runs of {name} share no logged step")
+            curves.append((f"{label} ({len(group)} seed{'s' if len(group) > 1 else ''})", steps, mean, std))
+        else:
+            steps, values = read_curve(group[0], column)
+            curves.append((label, steps, values, None))
     try:
         import matplotlib
 
@@ -81,18 +93,10 @@ def plot_runs(
     except ImportError:
         raise RankGameError("plotting needs matplotlib: pip install 'rankgame[plot]'") from None
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    for index, (name, group) in enumerate(curves):
-        label = labels[index] if labels is not None else name
-        if seeds:
-            steps, mean, std = mean_curve([read_curve(run, column) for run in group])
-            if len(steps) == 0:
-                plt.close(fig)
-                raise RankGameError(f"the runs of {name} share no logged step")
-            (line,) = ax.plot(steps, mean, label=f"{label} ({len(group)} seed{'s' if len(group) > 1 else ''})")
-            ax.fill_between(steps, mean - std, mean + std, color=line.get_color(), alpha=0.2)
-        else:
-            steps, values = read_curve(group[0], column)
-            ax.plot(steps, values, label=label)
+    for label, steps, values, std in curves:
+        (line,) = ax.plot(steps, values, label=label)
+        if std is not None:
+            ax.fill_between(steps, values - std, values + std, color=line.get_color(), alpha=0.2)
     if title:
         ax.set_title(title)
     ax.set_xlabel("environment steps")
