@@ -72,8 +72,8 @@ def plot_runs(
     groups = list(group_by_seed(runs).items()) if seeds else [(Path(run).name, [Path(run)]) for run in runs]
     if labels is not None and len(labels) != len(groups):
         unit = "group of seeds" if seeds else "run"
-        curves = f"{len(groups)} curve{'s' if len(groups) != 1 else ''}"
-        raise RankGameError(f"got {len(labels)} labels for {curves} (one label per {unit})")
+        count = f"{len(groups)} curve{'s' if len(groups) != 1 else ''}"
+        raise RankGameError(f"got {len(labels)} labels for {count} (one label per {unit})")
     # Read every curve before drawing, so that a bad run fails before a figure is made.
     curves = []
     for index, (name, group) in enumerate(groups):
