@@ -33,10 +33,16 @@ def _rows(out: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(handle))
 
 
-@pytest.mark.parametrize("method", ["rank-pal-auto", "rank-ral-auto"])
-def test_pal_and_ral_imitate_the_analytic_expert(method: str, toy_expert_file: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("method", "reward_obs"), [("rank-pal-auto", "all"), ("rank-ral-auto", "all"), ("rank-pal-auto", "1")]
+)
+def test_pal_and_ral_imitate_the_analytic_expert(
+    method: str, reward_obs: str, toy_expert_file: Path, tmp_path: Path
+) -> None:
+    """``--reward-obs 1``: a reward that reads only the distance to the goal (entry 1) suffices."""
     out = tmp_path / method
     args = [*TOY_TRAIN_ARGS, "--method", method, "--expert", str(toy_expert_file), "--steps", "2000"]
+    args += ["--reward-obs", reward_obs]
     assert main(["train", *args, "--eval-every", "1000", "--eval-episodes", "10", "--out", str(out)]) == 0
     rows = _rows(out)
     final = float(rows[-1]["normalized_score"])
@@ -231,6 +237,7 @@ def test_bad_training_input_gives_one_line_errors(toy_expert_file: Path, tmp_pat
     _one_line_error([*base, "--expert", str(toy_expert_file), "--k", "30"], "exceed the reward bound")
     _one_line_error([*base, "--expert", str(toy_expert_file), "--reward-input", "sa"], "use --setting lfd")
     _one_line_error([*base, "--expert", str(toy_expert_file), "--seed", "-1"], "--seed must be >= 0")
+    _one_line_error([*base, "--expert", str(toy_expert_file), "--reward-obs", "0:3"], "--reward-obs: '0:3' is not")
     _one_line_error([*base, "--expert", str(toy_expert_file), "--sac.gamma", "1"], "gamma must lie in [0, 1)")
     _one_line_error([*base, "--expert", str(toy_expert_file), "--reward.lr", "inf"], "reward lr must be finite")
     too_much_holdout = [*base, "--expert", str(toy_expert_file), "--reward.holdout-fraction", "0.9"]

@@ -9,7 +9,7 @@ import pytest
 
 from rankgame.reward.features import trajectory_features
 from rankgame.reward.losses import regression_ranking_loss, supremum_loss, weighted_sum
-from rankgame.reward.nets import bound_reward
+from rankgame.reward.nets import bound_reward, feature_columns, parse_obs_columns
 from rankgame.reward.player import RewardConfig, RewardPlayer
 from rankgame.reward.ranking_data import RankingData
 from rankgame.reward.targets import lambda_grid, target_schedule
@@ -86,6 +86,36 @@ def test_absorbing_padding_of_an_early_terminated_episode() -> None:
     np.testing.assert_array_equal(full[:, :2], obs[:3])
     with pytest.raises(ValueError, match="cannot be aligned"):
         trajectory_features(obs, acts, terminated=False, horizon=5, reward_input="s")
+
+
+def test_reward_observation_entries_are_parsed_and_mapped_to_input_columns() -> None:
+    assert parse_obs_columns("all", 4) == (0, 1, 2, 3)
+    assert parse_obs_columns("0:2, 3", 5) == (0, 1, 3)
+    assert parse_obs_columns("4 0:1", 5) == (4, 0)
+    for spec, reason in [
+        ("0:6", "inside the 5 observation entries"),
+        ("2:2", "non-empty range"),
+        ("a", "neither an index nor a range"),
+        ("0:2:1", "neither an index nor a range"),
+        ("0:2,1", "at most once"),
+        ("", "at least one"),
+    ]:
+        with pytest.raises(ValueError, match=reason):
+            parse_obs_columns(spec, 5)
+    # obs_dim 3 (flag at index 3), act_dim 2, entries 0 and 2 kept:
+    assert feature_columns(3, 2, "s", (0, 2)) == (0, 2, 3)
+    assert feature_columns(3, 2, "ss", (0, 2)) == (0, 2, 3, 4, 6, 7)
+    assert feature_columns(3, 2, "sa", (0, 2)) == (0, 2, 3, 4, 5)
+
+
+def test_the_reward_reads_only_its_columns() -> None:
+    player = RewardPlayer(4, "s", "regression", RewardConfig(), columns=(1, 3))
+    state = player.init(jax.random.key(0))
+    assert state.params["params"]["MLP_0"]["Dense_0"]["kernel"].shape == (2, 64)
+    x = jax.random.normal(jax.random.key(1), (8, 4))
+    ignored = x.at[:, 0].set(5.0).at[:, 2].set(-5.0)
+    np.testing.assert_array_equal(player.reward(state.params, x), player.reward(state.params, ignored))
+    assert not np.allclose(player.reward(state.params, x), player.reward(state.params, x.at[:, 1].add(1.0)))
 
 
 def test_mixup_is_time_aligned_with_scheduled_targets() -> None:

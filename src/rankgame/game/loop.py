@@ -44,7 +44,7 @@ from rankgame.policy.io import save_policy
 from rankgame.policy.learner import SACLearner
 from rankgame.policy.sac import SACConfig
 from rankgame.reward.features import trajectory_features
-from rankgame.reward.nets import RewardInput, feature_dim
+from rankgame.reward.nets import RewardInput, feature_columns, feature_dim, parse_obs_columns
 from rankgame.reward.player import RewardConfig, RewardPlayer
 from rankgame.reward.ranking_data import RankingData
 from rankgame.reward.targets import Schedule, lambda_grid, target_schedule
@@ -74,6 +74,9 @@ class TrainConfig:
     """Learn from observations only (lfo) or from observations and actions (lfd)."""
     reward_input: Literal["default", "s", "ss", "sa"] = "default"
     """Reward inputs: s, (s, s') or (s, a); default: s for lfo, sa for lfd."""
+    reward_obs: str = "all"
+    """Observation entries the reward reads: all, or indices and half-open ranges such as 0:27 (on
+    Ant-v5, the entries before its contact forces, which gym's Ant-v2 reported as zeros)."""
     k: float = 10.0
     """Performance gap k: expert inputs are regressed to agent_target + k."""
     agent_target: float = 0.0
@@ -209,8 +212,14 @@ class RankingGame:
                 "--policy-updates): the reward would never be fit"
             )
         reward_input = cfg.resolved_reward_input
+        try:
+            obs_columns = parse_obs_columns(cfg.reward_obs, spec.obs_dim)
+        except ValueError as exc:
+            raise RankGameError(f"--reward-obs: {exc}") from None
+        every_entry = obs_columns == tuple(range(spec.obs_dim))
+        columns = None if every_entry else feature_columns(spec.obs_dim, spec.act_dim, reward_input, obs_columns)
         self.player = RewardPlayer(
-            feature_dim(spec.obs_dim, spec.act_dim, reward_input), reward_input, self.method.loss, cfg.reward
+            feature_dim(spec.obs_dim, spec.act_dim, reward_input), reward_input, self.method.loss, cfg.reward, columns
         )
         # SAC relabels its batches with the reward player's current reward.
         self.learner = SACLearner(

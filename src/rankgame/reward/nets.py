@@ -6,11 +6,13 @@ the absorbing state that pads early-terminated trajectories; see :mod:`rankgame.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Literal
 
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from rankgame.policy.sac import MLP
 
@@ -19,12 +21,19 @@ Bound = Literal["clip", "tanh"]
 
 
 class RewardNet(nn.Module):
-    """ReLU MLP ``features (B, d) -> raw reward (B,)`` (every hidden layer has its activation)."""
+    """ReLU MLP ``features (B, d) -> raw reward (B,)`` (every hidden layer has its activation).
+
+    ``columns``, if given, are the entries of each input row the network reads (see
+    :func:`feature_columns`); the others are ignored.
+    """
 
     hidden_sizes: tuple[int, ...] = (64, 64)
+    columns: tuple[int, ...] | None = None
 
     @nn.compact
     def __call__(self, features: jax.Array) -> jax.Array:
+        if self.columns is not None:
+            features = features[..., np.asarray(self.columns)]
         return MLP(self.hidden_sizes, 1)(features)[..., 0]
 
 
@@ -48,3 +57,38 @@ def feature_dim(obs_dim: int, act_dim: int, reward_input: RewardInput) -> int:
     """Size of one reward input, absorbing flag included (``obs_dim`` excludes the flag)."""
     flagged = obs_dim + 1
     return {"s": flagged, "ss": 2 * flagged, "sa": flagged + act_dim}[reward_input]
+
+
+def parse_obs_columns(spec: str, obs_dim: int) -> tuple[int, ...]:
+    """Observation entries named by ``spec``: ``all``, or indices and half-open ranges such as
+    ``0:27`` or ``0:13,20:27``. Raises ``ValueError`` with a one-line reason for a bad spec."""
+    if spec.strip() == "all":
+        return tuple(range(obs_dim))
+    columns: list[int] = []
+    for item in spec.replace(",", " ").split():
+        try:
+            bounds = [int(part) for part in item.split(":")]
+        except ValueError:
+            raise ValueError(f"{item!r} is neither an index nor a range like 0:27") from None
+        if len(bounds) > 2:
+            raise ValueError(f"{item!r} is neither an index nor a range like 0:27")
+        start, stop = (bounds[0], bounds[0] + 1) if len(bounds) == 1 else bounds
+        if not 0 <= start < stop <= obs_dim:
+            raise ValueError(f"{item!r} is not a non-empty range inside the {obs_dim} observation entries")
+        columns.extend(range(start, stop))
+    if not columns or len(set(columns)) != len(columns):
+        raise ValueError(f"{spec!r} must name each observation entry at most once, and at least one")
+    return tuple(columns)
+
+
+def feature_columns(
+    obs_dim: int, act_dim: int, reward_input: RewardInput, obs_columns: Sequence[int]
+) -> tuple[int, ...]:
+    """Entries of a reward input (layout of :func:`feature_dim`) that belong to the observation
+    entries ``obs_columns``: those entries and the absorbing flag of each state, and all actions."""
+    flagged = [*obs_columns, obs_dim]
+    if reward_input == "s":
+        return tuple(flagged)
+    if reward_input == "ss":
+        return (*flagged, *(c + obs_dim + 1 for c in flagged))
+    return (*flagged, *range(obs_dim + 1, obs_dim + 1 + act_dim))

@@ -6,6 +6,7 @@ Gradient steps are fused ``chunk`` at a time into one jitted ``lax.scan`` over p
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -85,9 +86,17 @@ class RewardPlayer:
         feature_dim: size of one reward input (see :func:`rankgame.reward.nets.feature_dim`).
         reward_input: ``s``, ``ss`` or ``sa``; decides how SAC batches become reward inputs.
         loss: ``regression`` (L_k / SL_k) or ``supremum`` (IMIT ablation).
+        columns: entries of a reward input the network reads (default: all of them).
     """
 
-    def __init__(self, feature_dim: int, reward_input: RewardInput, loss: RankingLoss, config: RewardConfig) -> None:
+    def __init__(
+        self,
+        feature_dim: int,
+        reward_input: RewardInput,
+        loss: RankingLoss,
+        config: RewardConfig,
+        columns: Sequence[int] | None = None,
+    ) -> None:
         config.validate()
         self.config = config
         self.feature_dim = feature_dim
@@ -97,7 +106,7 @@ class RewardPlayer:
         # gradient dies at the bound); the supremum loss needs a bound inside the loss, so it uses the
         # smooth tanh bound, and the policy sees that same bounded reward.
         self.bound: Bound = "clip" if loss == "regression" else "tanh"
-        self.net = RewardNet(config.hidden_sizes)
+        self.net = RewardNet(config.hidden_sizes, None if columns is None else tuple(columns))
         self.tx = optax.chain(optax.add_decayed_weights(config.weight_decay), optax.adam(config.lr))
         self._update = jax.jit(self._update_many, donate_argnums=(0,))
         self._eval = jax.jit(self._loss_value)
