@@ -8,7 +8,7 @@ import numpy as np
 from conftest import assert_one_line_error, run_cli
 
 from rankgame.cli import main
-from rankgame.plot import group_by_seed, mean_curve
+from rankgame.plot import group_by_seed, mean_curve, read_curve
 
 
 def test_runs_are_grouped_by_name_without_the_seed_suffix() -> None:
@@ -56,3 +56,19 @@ def test_plot_labels_name_the_curves_and_must_match_their_number(tmp_path: Path)
     svg = out.read_text()
     assert "first (2 seeds)" in svg and "second (1 seed)" in svg and ">T<" in svg
     assert_one_line_error(run_cli("plot", *runs, "--labels", "x", "y"), "got 2 labels for 3 curves (one label per run)")
+
+
+def test_max_steps_ends_every_curve_there(tmp_path: Path) -> None:
+    long, short = tmp_path / "long_s0", tmp_path / "short_s0"
+    for run, rows in ((long, "1000,1\n2000,2\n3000,3\n"), (short, "1000,5\n2000,6\n")):
+        run.mkdir()
+        (run / "metrics.csv").write_text("env_steps,normalized_score\n" + rows)
+    assert read_curve(long, "normalized_score", max_steps=2500) == ([1000, 2000], [1.0, 2.0])
+    assert read_curve(long, "normalized_score") == ([1000, 2000, 3000], [1.0, 2.0, 3.0])
+    out = tmp_path / "cut.png"
+    assert main(["plot", str(long), str(short), "--seeds", "--max-steps", "2000", "--out", str(out)]) == 0
+    assert out.read_bytes()[:4] == b"\x89PNG"
+    assert_one_line_error(
+        run_cli("plot", str(long), "--max-steps", "500"), "no value of 'normalized_score' at or below 500"
+    )
+    assert_one_line_error(run_cli("plot", str(long), "--max-steps", "0"), "--max-steps must be positive (got 0)")

@@ -157,8 +157,20 @@ def _cmd_plot(argv: Sequence[str]) -> int:
         "--labels", nargs="+", help="legend names, one per curve in order (default: the run or group folder names)"
     )
     parser.add_argument("--title", help="title above the plot")
+    parser.add_argument(
+        "--max-steps", type=int, help="end every curve at this many environment steps (default: where each run ends)"
+    )
     args = parser.parse_args(argv)
-    print(plot_runs(args.runs, args.out, args.column, seeds=args.seeds, labels=args.labels, title=args.title))
+    out = plot_runs(
+        args.runs,
+        args.out,
+        args.column,
+        seeds=args.seeds,
+        labels=args.labels,
+        title=args.title,
+        max_steps=args.max_steps,
+    )
+    print(out)
     return 0
 
 

@@ -22,8 +22,9 @@ from rankgame.errors import RankGameError
 SEED_SUFFIX = re.compile(r"[_-]+s(?:eed)?\d+$")
 
 
-def read_curve(run: Path, column: str) -> tuple[list[int], list[float]]:
-    """``(env_steps, values)`` of one column of ``run/metrics.csv`` (rows without a value skipped)."""
+def read_curve(run: Path, column: str, max_steps: int | None = None) -> tuple[list[int], list[float]]:
+    """``(env_steps, values)`` of one column of ``run/metrics.csv`` (rows without a value, and rows past
+    ``max_steps`` environment steps if given, skipped)."""
     path = run / "metrics.csv"
     if not path.is_file():
         raise RankGameError(f"no metrics.csv in {run}")
@@ -33,9 +34,12 @@ def read_curve(run: Path, column: str) -> tuple[list[int], list[float]]:
         if column not in (reader.fieldnames or []):
             raise RankGameError(f"{path} has no column {column!r} (columns: {', '.join(reader.fieldnames or [])})")
         for row in reader:
-            if row.get(column):
+            if row.get(column) and (max_steps is None or int(row["env_steps"]) <= max_steps):
                 steps.append(int(row["env_steps"]))
                 values.append(float(row[column]))
+    if not steps:
+        past = "" if max_steps is None else f" at or below {max_steps} steps"
+        raise RankGameError(f"{path} has no value of {column!r}{past}")
     return steps, values
 
 
@@ -64,11 +68,15 @@ def plot_runs(
     seeds: bool = False,
     labels: Sequence[str] | None = None,
     title: str | None = None,
+    max_steps: int | None = None,
 ) -> Path:
     """Draw ``column`` against environment steps for every run (or every group of seeds) into ``out``.
 
     ``labels``, if given, names the curves in order: one per run, or one per group of seeds.
+    ``max_steps``, if given, ends every curve there (to compare runs of different lengths).
     """
+    if max_steps is not None and max_steps <= 0:
+        raise RankGameError(f"--max-steps must be positive (got {max_steps})")
     groups = list(group_by_seed(runs).items()) if seeds else [(Path(run).name, [Path(run)]) for run in runs]
     if labels is not None and len(labels) != len(groups):
         unit = "group of seeds" if seeds else "run"
@@ -79,12 +87,12 @@ def plot_runs(
     for index, (name, group) in enumerate(groups):
         label = labels[index] if labels is not None else name
         if seeds:
-            steps, mean, std = mean_curve([read_curve(run, column) for run in group])
+            steps, mean, std = mean_curve([read_curve(run, column, max_steps) for run in group])
             if len(steps) == 0:
                 raise RankGameError(f"the runs of {name} share no logged step")
             curves.append((f"{label} ({len(group)} seed{'s' if len(group) > 1 else ''})", steps, mean, std))
         else:
-            steps, values = read_curve(group[0], column)
+            steps, values = read_curve(group[0], column, max_steps)
             curves.append((label, steps, values, None))
     try:
         import matplotlib
