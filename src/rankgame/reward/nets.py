@@ -69,8 +69,8 @@ def parse_obs_columns(spec: str, obs_dim: int) -> tuple[int, ...]:
         try:
             bounds = [int(part) for part in item.split(":")]
         except ValueError:
-            raise ValueError(f"{item!r} is neither an index nor a range like 0:27") from None
-        if len(bounds) > 2:
+            bounds = []
+        if not 1 <= len(bounds) <= 2:
             raise ValueError(f"{item!r} is neither an index nor a range like 0:27")
         start, stop = (bounds[0], bounds[0] + 1) if len(bounds) == 1 else bounds
         if not 0 <= start < stop <= obs_dim:
