@@ -14,10 +14,13 @@ import shlex
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import NoReturn, TypeVar
+from typing import TYPE_CHECKING, Any, NoReturn, TypeVar
 
 from rankgame.cli_args import add_dataclass_options, dataclass_from_args
 from rankgame.errors import RankGameError
+
+if TYPE_CHECKING:
+    from rankgame.game.loop import TrainConfig
 
 PROG = "rankgame"
 
@@ -28,27 +31,39 @@ Config = TypeVar("Config")
 class _Parser(argparse.ArgumentParser):
     """ArgumentParser whose errors are one line: ``rankgame: error: ...``."""
 
+    def __init__(self, **kwargs: Any) -> None:
+        # Options read ahead of parsing (--preset, --recipe, --env, --method) must be spelled in full.
+        super().__init__(allow_abbrev=False, **kwargs)
+
     def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
 
 
-def _preset_from_argv(argv: Sequence[str], default: str) -> str:
-    """Read ``--preset NAME`` ahead of full parsing, so the preset can set the other defaults."""
+def _value_from_argv(argv: Sequence[str], option: str, default: str) -> str:
+    """Read ``OPTION VALUE`` ahead of full parsing, so that it can set the defaults of other options."""
     for i, arg in enumerate(argv):
-        if arg == "--preset" and i + 1 < len(argv):
+        if arg == option and i + 1 < len(argv):
             return argv[i + 1]
-        if arg.startswith("--preset="):
+        if arg.startswith(option + "="):
             return arg.split("=", 1)[1]
     return default
 
 
 def _config_with_sac_preset(
-    argv: Sequence[str], command: str, description: str, make_config: Callable[..., Config], default_preset: str
+    argv: Sequence[str],
+    command: str,
+    description: str,
+    make_config: Callable[..., Config],
+    default_preset: str,
+    add_options: Callable[[argparse.ArgumentParser], None] | None = None,
 ) -> Config:
-    """Parse ``argv`` into the config made by ``make_config(sac=preset)``; ``--preset`` sets the SAC defaults."""
+    """Parse ``argv`` into the config made by ``make_config(sac=preset)``; ``--preset`` sets the SAC defaults.
+
+    ``add_options`` adds options that are not fields of the config (read ahead by ``make_config``).
+    """
     from rankgame.policy.sac import SAC_PRESETS
 
-    preset = _preset_from_argv(argv, default_preset)
+    preset = _value_from_argv(argv, "--preset", default_preset)
     if preset not in SAC_PRESETS:
         raise RankGameError(f"unknown preset {preset!r}; choose from {', '.join(SAC_PRESETS)}")
     default = make_config(sac=SAC_PRESETS[preset])
@@ -56,6 +71,8 @@ def _config_with_sac_preset(
     parser.add_argument(
         "--preset", choices=list(SAC_PRESETS), default=preset, help=f"SAC preset (default: {default_preset})"
     )
+    if add_options is not None:
+        add_options(parser)
     add_dataclass_options(parser, default)
     return dataclass_from_args(parser.parse_args(argv), default)
 
@@ -69,11 +86,55 @@ def _cmd_expert(argv: Sequence[str]) -> int:
     return 0
 
 
-def _cmd_train(argv: Sequence[str]) -> int:
-    from rankgame.game.loop import TrainConfig, train
+def train_config_from_argv(argv: Sequence[str]) -> tuple[TrainConfig, str | None]:
+    """Parse ``rankgame train`` options: the config, and a note on what ``--recipe`` changed (None for paper).
+
+    The SAC preset and the recipe of ``--env`` and ``--method`` set the defaults; options given
+    explicitly override them.
+    """
+    from rankgame.game.loop import TrainConfig
+    from rankgame.game.recipes import RECIPES, recipe_settings, setting_value, with_settings
+    from rankgame.policy.sac import SACConfig
+
+    recipe = _value_from_argv(argv, "--recipe", "paper")
+    env = _value_from_argv(argv, "--env", TrainConfig.env)
+    method = _value_from_argv(argv, "--method", TrainConfig.method)
+    try:
+        settings = recipe_settings(recipe, env, method)
+    except ValueError as exc:
+        raise RankGameError(str(exc)) from None
+
+    def make_config(sac: SACConfig) -> TrainConfig:
+        return with_settings(TrainConfig(sac=sac), settings)
+
+    def add_recipe(parser: argparse.ArgumentParser) -> None:
+        parser.add_argument(
+            "--recipe",
+            choices=list(RECIPES),
+            default=recipe,
+            help="Per-task settings: paper (the paper's Table 4 on every task) or tuned (settings measured "
+            "better here for some task and method pairs, see rankgame.game.recipes); the defaults shown "
+            "below include the recipe, and options given explicitly override it (default: paper)",
+        )
 
     description = "Imitate an expert by playing the ranking game (RANK-PAL / RANK-RAL / IMIT)."
-    cfg = _config_with_sac_preset(argv, "train", description, TrainConfig, "paper")
+    cfg = _config_with_sac_preset(argv, "train", description, make_config, "paper", add_recipe)
+    if recipe == "paper":
+        return cfg, None
+    changes = [
+        f"--{name.replace('_', '-')} {value}" + ("" if setting_value(cfg, name) == value else " (overridden)")
+        for name, value in settings.items()
+    ]
+    summary = ", ".join(changes) or "no tuned settings for this pair, the paper's apply"
+    return cfg, f"--recipe {recipe} for {cfg.method} on {cfg.env}: {summary}"
+
+
+def _cmd_train(argv: Sequence[str]) -> int:
+    from rankgame.game.loop import train
+
+    cfg, recipe_note = train_config_from_argv(argv)
+    if recipe_note is not None:
+        print(recipe_note, file=sys.stderr)
     print(json.dumps(train(cfg, command=shlex.join([PROG, "train", *argv])), indent=2))
     return 0
 

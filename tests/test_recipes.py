@@ -1,0 +1,67 @@
+"""``rankgame train --recipe``: per-task settings that start the defaults and yield to explicit options."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import pytest
+
+from rankgame.cli import train_config_from_argv
+from rankgame.errors import RankGameError
+from rankgame.game.loop import TrainConfig
+from rankgame.game.recipes import TUNED, recipe_settings, setting_value, with_settings
+
+
+@dataclass(frozen=True)
+class _Inner:
+    lr: float = 1.0
+    decay: float = 2.0
+
+
+@dataclass(frozen=True)
+class _Outer:
+    name: str = "a"
+    inner: _Inner = field(default_factory=_Inner)
+
+
+def test_with_settings_sets_top_level_and_nested_fields_by_dotted_name() -> None:
+    changed = with_settings(_Outer(), {"name": "b", "inner.lr": 0.5})
+    assert changed == _Outer("b", _Inner(0.5, 2.0))
+    assert setting_value(changed, "inner.lr") == 0.5 and setting_value(changed, "name") == "b"
+
+
+def test_paper_changes_nothing_and_tuned_changes_only_listed_pairs() -> None:
+    assert recipe_settings("paper", "Ant-v5", "rank-pal-auto") == {}
+    assert recipe_settings("tuned", "Ant-v5", "rank-pal-auto") == {"reward_obs": "0:27"}
+    assert recipe_settings("tuned", "HalfCheetah-v5", "rank-pal-auto") == {
+        "reward.lr": 1e-4,
+        "reward.weight_decay": 1e-2,
+    }
+    assert recipe_settings("tuned", "HalfCheetah-v5", "rank-ral-auto") == {}
+    assert recipe_settings("tuned", "Hopper-v5", "rank-pal-auto") == {}
+    with pytest.raises(ValueError, match="unknown recipe 'best'"):
+        recipe_settings("best", "Ant-v5", "rank-pal-auto")
+
+
+def test_every_tuned_setting_names_an_existing_option() -> None:
+    for (env, method), settings in TUNED.items():
+        config = with_settings(TrainConfig(env=env, method=method), settings)  # type: ignore[arg-type]
+        config.validate()
+        assert all(setting_value(config, name) == value for name, value in settings.items())
+
+
+def test_the_cli_applies_the_recipe_to_the_defaults_and_explicit_options_win() -> None:
+    cfg, note = train_config_from_argv(["--env", "HalfCheetah-v5", "--recipe", "tuned", "--reward.lr", "3e-4"])
+    assert cfg.reward.lr == 3e-4 and cfg.reward.weight_decay == 1e-2 and cfg.env == "HalfCheetah-v5"
+    assert note == (
+        "--recipe tuned for rank-pal-auto on HalfCheetah-v5: "
+        "--reward.lr 0.0001 (overridden), --reward.weight-decay 0.01"
+    )
+    cfg, note = train_config_from_argv(["--recipe=tuned", "--env=Ant-v5", "--method", "rank-ral-auto"])
+    assert cfg.reward_obs == "0:27" and note is not None and note.endswith("--reward-obs 0:27")
+    cfg, note = train_config_from_argv(["--recipe", "tuned"])  # Hopper-v5: the paper's settings
+    assert cfg == TrainConfig() and note is not None and note.endswith("the paper's apply")
+    cfg, note = train_config_from_argv(["--env", "Ant-v5"])
+    assert cfg.reward_obs == "all" and note is None
+    with pytest.raises(RankGameError, match="unknown recipe"):
+        train_config_from_argv(["--recipe", "fancy"])
