@@ -1,8 +1,8 @@
 """Per-task settings of ``rankgame train --recipe``.
 
 ``paper`` keeps the paper's common hyperparameters (Table 4) on every task. ``tuned`` changes, for
-some task and method pairs, the settings that measured better on this implementation over 3 seeds (2 on Humanoid)
-(docs/benchmarks.md, "Sample efficiency"); every other pair keeps the paper's values:
+some task and method pairs, the settings that measured better on this implementation over 3 seeds
+(2 on Humanoid; docs/benchmarks.md, "Sample efficiency"); every other pair keeps the paper's values:
 
 * Ant-v5, both auto methods: the reward reads observation entries 0:27, not the 78 contact forces
   that gym's Ant-v2 reported as zeros (RANK-PAL 91.7 against 89.4 at 300k and 32.9 against 13.7 at
