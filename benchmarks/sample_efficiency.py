@@ -193,7 +193,10 @@ def main() -> None:
     parser.add_argument("--archive", type=Path, default=Path("benchmarks/results/sample-efficiency"))
     parser.add_argument("--cores", nargs="+", default=["0", "1"], help="CPU cores to pin one run each to")
     parser.add_argument(
-        "--train-args", default="", help="further options for every `rankgame train`, e.g. '--reward.lr 1e-4'"
+        "--train-args",
+        default="",
+        help="further options for every `rankgame train`, e.g. '--reward.lr 1e-4'; write "
+        "--train-args=--sac.learn-alpha (with '=') when the value is a single word starting with '-'",
     )
     parser.add_argument("--summarize-only", action="store_true")
     args = parser.parse_args()
