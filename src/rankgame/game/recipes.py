@@ -2,7 +2,7 @@
 
 ``paper`` keeps the paper's common hyperparameters (Table 4) on every task. ``tuned`` changes, for
 some task and method pairs, the settings that measured better on this implementation over 3 seeds
-(2 on Humanoid; docs/benchmarks.md, "Sample efficiency"); every other pair keeps the paper's values:
+(docs/benchmarks.md, "Sample efficiency"); every other pair keeps the paper's values:
 
 * Ant-v5, both auto methods: the reward reads observation entries 0:27, not the 78 contact forces
   that gym's Ant-v2 reported as zeros (RANK-PAL 91.7 against 89.4 at 300k and 32.9 against 13.7 at
@@ -10,7 +10,8 @@ some task and method pairs, the settings that measured better on this implementa
 * HalfCheetah-v5, RANK-PAL(auto): the reward learning rate and weight decay of the authors'
   HalfCheetah configuration, 1e-4 and 1e-2 (88.3 against 61.7 at 300k, without the deep dips).
 * Humanoid-v5, RANK-PAL(auto): the same two settings of the authors' Humanoid configuration (mean
-  over the evaluations from 250k to 300k 48.3 and 34.1 against 23.8 and 17.5, 2 seeds).
+  over the evaluations from 250k to 300k 48.3, 34.1 and 26.8 over 3 seeds against 23.8 and 17.5
+  over 2 seeds with the paper's settings).
 
 The CLI applies a recipe to the defaults, so an option given on the command line overrides it.
 """
