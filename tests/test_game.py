@@ -240,6 +240,7 @@ def test_bad_training_input_gives_one_line_errors(toy_expert_file: Path, tmp_pat
     _one_line_error([*base, "--expert", str(toy_expert_file), "--reward-obs", "0:3"], "--reward-obs: '0:3' is not")
     _one_line_error([*base, "--expert", str(toy_expert_file), "--sac.gamma", "1"], "gamma must lie in [0, 1)")
     _one_line_error([*base, "--recipe", "fancy"], "unknown recipe 'fancy'; choose from paper, tuned")
+    _one_line_error([*base, "--recipe", "--seed", "1"], "argument --recipe: expected one argument")
     _one_line_error([*base, "--expert", str(toy_expert_file), "--reward.lr", "inf"], "reward lr must be finite")
     too_much_holdout = [*base, "--expert", str(toy_expert_file), "--reward.holdout-fraction", "0.9"]
     _one_line_error(too_much_holdout, "holdout_fraction must lie in [0, 0.5]")

@@ -40,9 +40,12 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _value_from_argv(argv: Sequence[str], option: str, default: str) -> str:
-    """Read ``OPTION VALUE`` ahead of full parsing, so that it can set the defaults of other options."""
+    """Read ``OPTION VALUE`` ahead of full parsing, so that it can set the defaults of other options.
+
+    A missing value gives ``default`` here; the full parse then reports it.
+    """
     for i, arg in enumerate(argv):
-        if arg == option and i + 1 < len(argv):
+        if arg == option and i + 1 < len(argv) and not argv[i + 1].startswith("--"):
             return argv[i + 1]
         if arg.startswith(option + "="):
             return arg.split("=", 1)[1]
