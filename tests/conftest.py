@@ -47,6 +47,22 @@ def toy_expert_file(tmp_path_factory: pytest.TempPathFactory):
     )
 
 
+@pytest.fixture(scope="session")
+def toy_preference_file(tmp_path_factory: pytest.TempPathFactory):
+    """Four PointGoal episodes of increasing quality (standing still, random actions, the expert) to rank."""
+    import numpy as np
+
+    from rankgame.data.trajectories import save_trajectories
+    from rankgame.envs.make import make_env
+    from rankgame.envs.rollout import random_policy, rollout
+    from rankgame.envs.toy import POINT_GOAL_ID, point_goal_expert
+
+    env = make_env(POINT_GOAL_ID)
+    episodes = rollout(env, lambda obs: np.zeros(1, np.float32), 1, seed=1) + rollout(env, random_policy(env, 0), 2, 2)
+    episodes += rollout(env, point_goal_expert, 1, seed=4)
+    return save_trajectories(tmp_path_factory.mktemp("toy") / "prefs.npz", POINT_GOAL_ID, episodes)
+
+
 #: Command-line options of a small, fast ranking game on the toy task.
 TOY_TRAIN_ARGS = (
     "--env",

@@ -84,10 +84,12 @@ def test_the_game_learns_to_stay_on_a_ledge_it_could_step_off(
     assert np.mean([episode.ret for episode in episodes]) > -10.0
 
 
-def test_every_method_runs(toy_expert_file: Path, tmp_path: Path) -> None:
-    for method in METHODS:
+def test_every_method_runs(toy_expert_file: Path, toy_preference_file: Path, tmp_path: Path) -> None:
+    for method, pieces in METHODS.items():
         out = tmp_path / method
         args = [*TOY_TRAIN_ARGS, "--method", method, "--expert", str(toy_expert_file), "--steps", "480"]
+        if pieces.rankings == "pref":
+            args += ["--preferences", str(toy_preference_file)]
         assert main(["train", *args, "--eval-every", "480", "--eval-episodes", "1", "--out", str(out)]) == 0
         last = _rows(out)[-1]
         for column in ("eval_return", "reward/train_loss", "reward/agent", "reward/expert", "losses/critic"):

@@ -1,4 +1,5 @@
-"""The ``rankgame`` command line: ``train``, ``evaluate``, ``expert``, ``record``, ``experts`` and ``plot``.
+"""The ``rankgame`` command line: ``train``, ``evaluate``, ``expert``, ``record``, ``preferences``, ``experts``
+and ``plot``.
 
 Options are generated from the config dataclasses (see :mod:`rankgame.cli_args`). A ``--preset``
 picks the defaults the other options start from, and ``--help`` shows that preset's values.
@@ -175,6 +176,35 @@ def _cmd_record(argv: Sequence[str]) -> int:
     return 0
 
 
+@dataclasses.dataclass(frozen=True)
+class PreferencesConfig:
+    """Options of ``rankgame preferences``."""
+
+    run: Path = Path("runs/expert")
+    """Folder of a `rankgame expert` run; its checkpoint.npz holds the replay buffer to draw from."""
+    out: Path = Path("runs/preferences.npz")
+    """Trajectory file to write (pass it to `rankgame train --preferences`)."""
+    count: int = 10
+    """Complete episodes to draw uniformly, without replacement (the paper uses 10)."""
+    seed: int = 0
+    """Seed of the draw."""
+
+
+def _cmd_preferences(argv: Sequence[str]) -> int:
+    from rankgame.data.preferences import sample_preferences
+
+    description = (
+        "Draw episodes uniformly from the replay buffer of a SAC run on the true reward, as offline rankings "
+        "(ranked by true return) for the pref methods."
+    )
+    parser = _Parser(prog=f"{PROG} preferences", description=description)
+    add_dataclass_options(parser, PreferencesConfig())
+    cfg = dataclass_from_args(parser.parse_args(argv), PreferencesConfig())
+    command = shlex.join([PROG, "preferences", *argv])
+    print(json.dumps(sample_preferences(cfg.run, cfg.out, cfg.count, cfg.seed, command=command), indent=2))
+    return 0
+
+
 def _cmd_evaluate(argv: Sequence[str]) -> int:
     from rankgame.evaluate import EvaluateConfig, evaluate_policy
 
@@ -243,6 +273,7 @@ COMMANDS = {
     "evaluate": (_cmd_evaluate, "roll out a saved policy: return and normalized score"),
     "expert": (_cmd_expert, "train a SAC expert on the true reward and record its trajectories"),
     "record": (_cmd_record, "record trajectories of a saved policy"),
+    "preferences": (_cmd_preferences, "draw ranked trajectories from a SAC run's replay buffer (pref methods)"),
     "experts": (_cmd_experts, "list the shipped expert data"),
     "plot": (_cmd_plot, "plot learning curves of run folders"),
 }
@@ -253,7 +284,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help"):
         lines = [f"usage: {PROG} COMMAND [options]   ({PROG} COMMAND --help for its options)", "", "commands:"]
-        lines += [f"  {name:<9} {text}" for name, (_, text) in COMMANDS.items()]
+        lines += [f"  {name:<12} {text}" for name, (_, text) in COMMANDS.items()]
         print("\n".join(lines))
         return 0 if argv else 2
     if argv[0] in ("-V", "--version"):

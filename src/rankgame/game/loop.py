@@ -13,6 +13,7 @@ import json
 import shlex
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -33,7 +34,8 @@ from rankgame.checkpoint import (
 )
 from rankgame.cli_args import config_to_json
 from rankgame.data.experts import normalized_score, shipped_expert_path
-from rankgame.data.trajectories import TrajectoryFile, load_trajectories
+from rankgame.data.preferences import load_preferences, shipped_preferences_path
+from rankgame.data.trajectories import Trajectory, TrajectoryFile, load_trajectories
 from rankgame.envs.make import env_spec, make_env
 from rankgame.envs.rollout import EVAL_SEED_OFFSET, episode_returns, random_policy, to_normalized_action
 from rankgame.errors import RankGameError
@@ -45,6 +47,7 @@ from rankgame.policy.learner import SACLearner
 from rankgame.policy.sac import SACConfig
 from rankgame.reward.features import trajectory_features
 from rankgame.reward.nets import RewardInput, feature_columns, feature_dim, parse_obs_columns
+from rankgame.reward.offline_rankings import OfflineRankings
 from rankgame.reward.player import RewardConfig, RewardPlayer
 from rankgame.reward.ranking_data import RankingData
 from rankgame.reward.targets import Schedule, lambda_grid, target_schedule
@@ -57,7 +60,14 @@ class TrainConfig:
     env: str = "Hopper-v5"
     """Gymnasium id of the task."""
     method: Literal[
-        "rank-pal-auto", "rank-ral-auto", "rank-pal-vanilla", "rank-ral-vanilla", "imit-pal", "imit-ral"
+        "rank-pal-auto",
+        "rank-ral-auto",
+        "rank-pal-vanilla",
+        "rank-ral-vanilla",
+        "rank-pal-pref",
+        "rank-ral-pref",
+        "imit-pal",
+        "imit-ral",
     ] = "rank-pal-auto"
     """Ranking source x loss x leader (see rankgame.game.methods)."""
     steps: int = 300_000
@@ -68,6 +78,9 @@ class TrainConfig:
     """Output folder: metrics.csv, tb/, checkpoint.npz, policy.msgpack."""
     expert: Path | None = None
     """Expert trajectory file (default: the shipped data for ENV)."""
+    preferences: Path | None = None
+    """Offline trajectories ranked below the expert, for the pref methods (default: the shipped data
+    for ENV; make a file with `rankgame preferences`)."""
     expert_trajectories: int = 1
     """How many expert trajectories to imitate (the first ones of the file)."""
     setting: Literal["lfo", "lfd"] = "lfo"
@@ -135,6 +148,8 @@ class TrainConfig:
             raise RankGameError("--k must be positive")
         if self.interpolations < 0:
             raise RankGameError("--interpolations must be >= 0")
+        if self.preferences is not None and METHODS[self.method].rankings != "pref":
+            raise RankGameError(f"--preferences is used only by the pref methods, not {self.method}")
         if self.setting == "lfo" and self.resolved_reward_input == "sa":
             raise RankGameError("--reward-input sa needs expert actions: use --setting lfd")
         if not np.isfinite([self.k, self.agent_target, self.beta]).all():
@@ -218,8 +233,15 @@ class RankingGame:
             raise RankGameError(f"--reward-obs: {exc}") from None
         every_entry = obs_columns == tuple(range(spec.obs_dim))
         columns = None if every_entry else feature_columns(spec.obs_dim, spec.act_dim, reward_input, obs_columns)
+        expert_inputs = self._inputs(expert.trajectories[: cfg.expert_trajectories], "expert data")
+        offline = self._offline_rankings(expert_inputs) if self.method.rankings == "pref" else None
         self.player = RewardPlayer(
-            feature_dim(spec.obs_dim, spec.act_dim, reward_input), reward_input, self.method.loss, cfg.reward, columns
+            feature_dim(spec.obs_dim, spec.act_dim, reward_input),
+            reward_input,
+            self.method.loss,
+            cfg.reward,
+            columns,
+            offline,
         )
         # SAC relabels its batches with the reward player's current reward.
         self.learner = SACLearner(
@@ -234,16 +256,6 @@ class RankingGame:
         self.reward_state = self.player.init(jax.random.fold_in(jax.random.key(cfg.seed), 1))
         self.rng = np.random.default_rng([cfg.seed, 1])
 
-        used = expert.trajectories[: cfg.expert_trajectories]
-        try:
-            expert_inputs = np.stack(
-                [
-                    self._features(t.obs, to_normalized_action(t.acts, spec.act_low, spec.act_high), t.terminated[-1])
-                    for t in used
-                ]
-            )
-        except ValueError as exc:
-            raise RankGameError(f"expert data cannot be used on {cfg.env}: {exc}") from None
         lambdas = lambda_grid(cfg.interpolations) if self.method.rankings == "auto" else np.array([0.0, 1.0])
         targets = target_schedule(lambdas, cfg.agent_target, cfg.agent_target + cfg.k, cfg.schedule, cfg.beta)
         self.data = RankingData(expert_inputs, lambdas, targets, cfg.reward.holdout_fraction, flag_index=spec.obs_dim)
@@ -261,6 +273,42 @@ class RankingGame:
 
     def _features(self, obs: np.ndarray, acts_norm: np.ndarray, terminated: bool) -> np.ndarray:
         return trajectory_features(obs, acts_norm, terminated, self.horizon, self.cfg.resolved_reward_input)
+
+    def _inputs(self, trajectories: Sequence[Trajectory], what: str) -> np.ndarray:
+        """Reward inputs ``(n, H, d)`` of recorded trajectories, padded to the horizon."""
+        spec = env_spec(self.env)
+        try:
+            return np.stack(
+                [
+                    self._features(t.obs, to_normalized_action(t.acts, spec.act_low, spec.act_high), t.terminated[-1])
+                    for t in trajectories
+                ]
+            )
+        except ValueError as exc:
+            raise RankGameError(f"{what} cannot be used on {self.cfg.env}: {exc}") from None
+
+    def _offline_rankings(self, expert_inputs: np.ndarray) -> OfflineRankings:
+        """The (pref) chain: the preference file's trajectories, worst first, below the expert.
+
+        Trajectory ``i`` of ``p`` gets the schedule's target at ``i / p`` of the way from the agent's
+        target to the expert's (App. B.1 with offline trajectories in place of mixtures).
+        """
+        cfg = self.cfg
+        path = cfg.preferences if cfg.preferences is not None else shipped_preferences_path(cfg.env)
+        data, order = load_preferences(path, cfg.env)
+        spec = env_spec(self.env)
+        if (data.obs_dim, data.act_dim) != (spec.obs_dim, spec.act_dim):
+            raise RankGameError(
+                f"preference data has obs_dim={data.obs_dim}, act_dim={data.act_dim}; {cfg.env} has "
+                f"obs_dim={spec.obs_dim}, act_dim={spec.act_dim}"
+            )
+        ranked = self._inputs([data.trajectories[i] for i in order], "preference data")
+        positions = np.arange(len(ranked) + 1) / len(ranked)
+        targets = target_schedule(positions, cfg.agent_target, cfg.agent_target + cfg.k, cfg.schedule, cfg.beta)
+        try:
+            return OfflineRankings(ranked, expert_inputs, targets, cfg.reward.snippet_length)
+        except ValueError as exc:
+            raise RankGameError(f"--reward.snippet-length: {exc}") from None
 
     def env_step(self) -> None:
         """One environment step and the SAC updates due after it."""

@@ -7,10 +7,14 @@ rank-pal-auto      auto       regression  pal
 rank-ral-auto      auto       regression  ral
 rank-pal-vanilla   vanilla    regression  pal
 rank-ral-vanilla   vanilla    regression  ral
+rank-pal-pref      pref       regression  pal
+rank-ral-pref      pref       regression  ral
 imit-pal           vanilla    supremum    pal
 imit-ral           vanilla    supremum    ral
 =================  =========  ==========  ======
 
+``vanilla`` ranks the agent below the expert; ``auto`` adds the time-aligned mixtures between them
+(App. B.1); ``pref`` adds a fixed chain of offline trajectories ranked below the expert (Eq. 6).
 Adding a method means adding a row to :data:`METHODS`, not another training loop.
 """
 
@@ -21,7 +25,7 @@ from typing import Literal
 
 from rankgame.reward.player import RankingLoss
 
-RankingSource = Literal["vanilla", "auto"]
+RankingSource = Literal["vanilla", "auto", "pref"]
 Leader = Literal["pal", "ral"]
 
 
@@ -39,6 +43,8 @@ METHODS: dict[str, Method] = {
     "rank-ral-auto": Method("auto", "regression", "ral"),
     "rank-pal-vanilla": Method("vanilla", "regression", "pal"),
     "rank-ral-vanilla": Method("vanilla", "regression", "ral"),
+    "rank-pal-pref": Method("pref", "regression", "pal"),
+    "rank-ral-pref": Method("pref", "regression", "ral"),
     "imit-pal": Method("vanilla", "supremum", "pal"),
     "imit-ral": Method("vanilla", "supremum", "ral"),
 }

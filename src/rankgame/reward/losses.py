@@ -4,6 +4,8 @@
   Eq. 8): every input is regressed to the target of the behavior it came from. With only agent
   (target 0) and expert (target k) groups of equal size it is exactly L_k / 2; with the auto
   mixtures it is SL_k.
+* :func:`snippet_regression_loss` regresses the summed reward of a snippet of ``l`` steps of an
+  offline trajectory to ``k_i l`` (App. B.3), scaled by ``1 / l^2``.
 * :func:`supremum_loss` is the loss of the IMIT ablation (App. D.3): maximize the gap between the
   bounded reward on expert and on agent inputs, ``-(E_E[r] - E_pi[r])``.
 * :func:`weighted_sum` combines losses, e.g. ``alpha L_k(online) + (1 - alpha) L_k(offline)`` (Eq. 6).
@@ -39,6 +41,21 @@ def regression_ranking_loss(
     sq = (raw - targets) ** 2
     loss = jnp.mean(sq) if weights is None else jnp.sum(weights * sq) / jnp.maximum(jnp.sum(weights), 1e-08)
     return loss, {"mse": loss}
+
+
+def snippet_regression_loss(raw: jax.Array, targets: jax.Array) -> tuple[jax.Array, Metrics]:
+    """Squared error of each snippet's summed reward against ``k_i l``, divided by ``l^2``.
+
+    Args:
+        raw: ``(S, l)`` unbounded reward outputs along each of S snippets of length l.
+        targets: ``(S,)`` per-step target ``k_i`` of the behavior each snippet came from.
+    Returns:
+        ``mean_s ((sum_t raw[s, t] - l k_s) / l)^2``, the squared error of the snippet's mean reward,
+        and ``{"snippet_mse": ...}``.
+    """
+    length = raw.shape[-1]
+    loss = jnp.mean(((jnp.sum(raw, axis=-1) - length * targets) / length) ** 2)
+    return loss, {"snippet_mse": loss}
 
 
 def supremum_loss(

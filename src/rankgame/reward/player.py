@@ -18,8 +18,15 @@ import optax
 
 from rankgame.errors import nonfinite_fields, require
 from rankgame.policy.sac import Batch
-from rankgame.reward.losses import Metrics, regression_ranking_loss, supremum_loss
+from rankgame.reward.losses import (
+    Metrics,
+    regression_ranking_loss,
+    snippet_regression_loss,
+    supremum_loss,
+    weighted_sum,
+)
 from rankgame.reward.nets import Bound, RewardInput, RewardNet, batch_features, bound_reward
+from rankgame.reward.offline_rankings import OfflineRankings
 from rankgame.reward.ranking_data import RankingData
 
 RankingLoss = Literal["regression", "supremum"]
@@ -54,6 +61,11 @@ class RewardConfig:
     ral_passes: float = 1.0
     """Passes over the agent data per iteration (RAL): n_rew = ral_passes |D| / batch_size gradient
     steps, |D| = real agent states so far (each step draws one mixture per sampled state)."""
+    pref_weight: float = 0.3
+    """Weight of the offline rankings' loss in the (pref) methods, ``1 - alpha`` in Eq. 6 (the paper's
+    Table 4: offline rankings loss weight 0.3); the agent-vs-expert ranking gets the rest."""
+    snippet_length: int = 10
+    """Steps per snippet of an offline trajectory whose summed reward is regressed to k_i l (pref)."""
     chunk: int = 8
     """Gradient steps fused into one jitted call."""
 
@@ -69,6 +81,8 @@ class RewardConfig:
             (self.patience > 0 and self.max_epochs > 0, "patience and max_epochs must be positive"),
             (self.ral_passes > 0, "ral_passes must be positive"),
             (0.0 <= self.min_improvement < 1.0, "min_improvement must lie in [0, 1)"),
+            (0.0 <= self.pref_weight <= 1.0, "pref_weight must lie in [0, 1]"),
+            (self.snippet_length > 0, "snippet_length must be positive"),
         ]
         require(checks)
 
@@ -87,6 +101,8 @@ class RewardPlayer:
         reward_input: ``s``, ``ss`` or ``sa``; decides how SAC batches become reward inputs.
         loss: ``regression`` (L_k / SL_k) or ``supremum`` (IMIT ablation).
         columns: entries of a reward input the network reads (default: all of them).
+        offline: offline rankings of the (pref) methods, fit alongside the agent-vs-expert ranking
+            with weight ``config.pref_weight`` (Eq. 6); only with the regression loss.
     """
 
     def __init__(
@@ -96,8 +112,12 @@ class RewardPlayer:
         loss: RankingLoss,
         config: RewardConfig,
         columns: Sequence[int] | None = None,
+        offline: OfflineRankings | None = None,
     ) -> None:
         config.validate()
+        if offline is not None and loss != "regression":
+            raise ValueError("offline rankings need the regression ranking loss")
+        self.offline = offline
         self.config = config
         self.feature_dim = feature_dim
         self.reward_input = reward_input
@@ -146,18 +166,48 @@ class RewardPlayer:
     ) -> jax.Array:
         return self._loss(params, inputs, targets, is_expert, weights)[0]
 
-    def _update_many(
-        self, state: RewardState, inputs: jax.Array, targets: jax.Array, is_expert: jax.Array
-    ) -> tuple[RewardState, jax.Array]:
-        """Gradient steps over batches ``inputs (n, B, d)``, ``targets (n, B)``, ``is_expert (n, B)``."""
+    def _training_loss(
+        self,
+        params: Any,
+        inputs: jax.Array,
+        targets: jax.Array,
+        is_expert: jax.Array,
+        offline: tuple[jax.Array, ...] | None,
+    ) -> tuple[jax.Array, Metrics]:
+        """The ranking loss of one batch; with offline batches, Eq. 6:
+        ``(1 - w) L(agent vs expert) + w (L_states(offline) + L_snippets(offline)) / 2``.
 
-        def step(carry: RewardState, batch: tuple[jax.Array, jax.Array, jax.Array]) -> tuple[RewardState, jax.Array]:
-            x, y, e = batch
-            (loss, _), grads = jax.value_and_grad(self._loss, has_aux=True)(carry.params, x, y, e, jnp.ones_like(y))
+        ``offline`` holds states ``(B, d)``, their targets ``(B,)``, snippets ``(S, l, d)`` and their
+        targets ``(S,)`` (see :meth:`OfflineRankings.sample`).
+        """
+        online = self._loss(params, inputs, targets, is_expert, jnp.ones_like(targets))
+        if offline is None:
+            return online
+        states, state_targets, snippets, snippet_targets = offline
+        state_loss, _ = regression_ranking_loss(self.net.apply(params, states), state_targets)
+        snippet_loss, _ = snippet_regression_loss(self.net.apply(params, snippets), snippet_targets)
+        offline_loss = 0.5 * (state_loss + snippet_loss)
+        weight = self.config.pref_weight
+        return weighted_sum([(1.0 - weight, online), (weight, (offline_loss, {}))])
+
+    def _update_many(
+        self,
+        state: RewardState,
+        inputs: jax.Array,
+        targets: jax.Array,
+        is_expert: jax.Array,
+        offline: tuple[jax.Array, ...] | None,
+    ) -> tuple[RewardState, jax.Array]:
+        """Gradient steps over batches ``inputs (n, B, d)``, ``targets (n, B)``, ``is_expert (n, B)``
+        and, for the (pref) methods, ``n`` offline batches (else None)."""
+
+        def step(carry: RewardState, batch: tuple[Any, ...]) -> tuple[RewardState, jax.Array]:
+            x, y, e, off = batch
+            (loss, _), grads = jax.value_and_grad(self._training_loss, has_aux=True)(carry.params, x, y, e, off)
             updates, opt_state = self.tx.update(grads, carry.opt_state, carry.params)
             return RewardState(optax.apply_updates(carry.params, updates), opt_state), loss
 
-        state, losses = jax.lax.scan(step, state, (inputs, targets, is_expert))
+        state, losses = jax.lax.scan(step, state, (inputs, targets, is_expert, offline))
         return state, jnp.mean(losses)
 
     def fit_steps(
@@ -165,9 +215,11 @@ class RewardPlayer:
     ) -> tuple[RewardState, float]:
         """About ``n_updates`` gradient steps (rounded up to whole chunks); returns the mean training loss."""
         losses = []
-        for _ in range(max(1, math.ceil(n_updates / self.config.chunk))):
-            inputs, targets, is_expert = data.sample(rng, self.config.chunk, self.config.batch_size)
-            state, loss = self._update(state, inputs, targets, is_expert)
+        chunk, batch_size = self.config.chunk, self.config.batch_size
+        for _ in range(max(1, math.ceil(n_updates / chunk))):
+            inputs, targets, is_expert = data.sample(rng, chunk, batch_size)
+            offline = None if self.offline is None else self.offline.sample(rng, chunk, batch_size)
+            state, loss = self._update(state, inputs, targets, is_expert, offline)
             losses.append(loss)
         return state, float(np.mean(jax.device_get(losses)))
 

@@ -1,0 +1,78 @@
+"""Offline rankings ``rho^1 <= ... <= rho^p <= rho^E`` for the (pref) methods (Eq. 6, App. B.1 and B.3).
+
+The ``p`` offline trajectories, ordered worst to best and grounded by the expert, form a chain of
+``p + 1`` behaviors. Behavior ``i`` is regressed to the target ``k_i`` of the same schedule the auto
+mixtures use, at ``i / p`` of the way from the bottom of the chain to the expert (the shaped loss
+SL_k, Eq. 8, with offline trajectories in place of mixtures). As in App. B.3, every sampled snippet
+of ``l`` consecutive steps is also regressed: its summed reward to ``k_i l``. The snippet term is
+divided by ``l^2``, so that it is the squared error of the snippet's *mean* reward and lies on the
+same scale as the per-state term.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class OfflineRankings:
+    """A fixed chain of ranked trajectories, sampled as states and as snippets.
+
+    Args:
+        ranked: ``(p, H, d)`` reward inputs of the offline trajectories, worst first, padded with
+            absorbing states to the horizon like agent data.
+        expert: ``(M, H, d)`` expert reward inputs, the top of the chain.
+        targets: ``(p + 1,)`` non-decreasing regression targets, the expert's last.
+        snippet_length: ``l``, steps per snippet (at most H).
+    """
+
+    def __init__(self, ranked: np.ndarray, expert: np.ndarray, targets: np.ndarray, snippet_length: int) -> None:
+        if ranked.ndim != 3 or len(ranked) < 1 or expert.ndim != 3 or ranked.shape[1:] != expert.shape[1:]:
+            raise ValueError(
+                f"offline inputs {ranked.shape} and expert inputs {expert.shape} must both be (n, H, d), n >= 1"
+            )
+        if targets.shape != (len(ranked) + 1,) or np.any(np.diff(targets) < 0):
+            raise ValueError("offline rankings need one non-decreasing target per trajectory plus the expert's")
+        if not 1 <= snippet_length <= ranked.shape[1]:
+            raise ValueError(f"the snippet length must lie in [1, {ranked.shape[1]}] (the horizon)")
+        self.ranked = ranked.astype(np.float32)
+        self.expert = expert.astype(np.float32)
+        self.targets = targets.astype(np.float32)
+        self.snippet_length = snippet_length
+        self.horizon = ranked.shape[1]
+
+    @property
+    def n_behaviors(self) -> int:
+        """``p + 1``: the offline trajectories and the expert."""
+        return len(self.ranked) + 1
+
+    def sample(
+        self, rng: np.random.Generator, n_batches: int, batch_size: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Training batches, every behavior equally likely.
+
+        Returns:
+            states ``(n, B, d)`` and their targets ``(n, B)``; snippets ``(n, S, l, d)`` and their
+            per-step targets ``(n, S)``, with ``S = max(1, B // l)`` snippets per batch.
+        """
+        shape = (n_batches, batch_size)
+        behavior = rng.integers(0, self.n_behaviors, size=shape)
+        t = rng.integers(0, self.horizon, size=shape)
+        states = self._states(rng, behavior, t)
+        n_snippets = max(1, batch_size // self.snippet_length)
+        snippet_behavior = rng.integers(0, self.n_behaviors, size=(n_batches, n_snippets))
+        start = rng.integers(0, self.horizon - self.snippet_length + 1, size=(n_batches, n_snippets))
+        steps = start[..., None] + np.arange(self.snippet_length)
+        snippets = self._states(rng, np.repeat(snippet_behavior[..., None], self.snippet_length, axis=-1), steps)
+        return states, self.targets[behavior], snippets, self.targets[snippet_behavior]
+
+    def _states(self, rng: np.random.Generator, behavior: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Inputs ``(n, B, [l,] d)`` at times ``t`` of behaviors ``behavior`` (both ``(n, B[, l])``).
+
+        An expert behavior reads one uniformly drawn expert trajectory per ``(n, B)`` entry, so a
+        snippet stays within one trajectory.
+        """
+        expert_pick = rng.integers(0, len(self.expert), size=behavior.shape[:2])
+        expert_pick = expert_pick.reshape(expert_pick.shape + (1,) * (behavior.ndim - 2))
+        offline = self.ranked[np.minimum(behavior, len(self.ranked) - 1), t]
+        expert = self.expert[expert_pick, t]
+        return np.where((behavior == len(self.ranked))[..., None], expert, offline)
