@@ -36,7 +36,7 @@ from rankgame.cli_args import config_to_json
 from rankgame.data.experts import normalized_score, shipped_expert_path
 from rankgame.data.preferences import load_preferences, shipped_preferences_path
 from rankgame.data.trajectories import Trajectory, TrajectoryFile, load_trajectories
-from rankgame.envs.make import env_spec, make_env
+from rankgame.envs.make import EnvSpec, env_spec, make_env
 from rankgame.envs.rollout import EVAL_SEED_OFFSET, episode_returns, random_policy, to_normalized_action
 from rankgame.errors import RankGameError
 from rankgame.game.leaders import add_agent_data, fit_reward
@@ -203,6 +203,15 @@ def load_expert(cfg: TrainConfig) -> TrajectoryFile:
     return data
 
 
+def _require_dims(data: TrajectoryFile, spec: EnvSpec, what: str) -> None:
+    """A one-line error if recorded trajectories do not have the environment's dimensions."""
+    if (data.obs_dim, data.act_dim) != (spec.obs_dim, spec.act_dim):
+        raise RankGameError(
+            f"{what} has obs_dim={data.obs_dim}, act_dim={data.act_dim}; {data.env_id} has "
+            f"obs_dim={spec.obs_dim}, act_dim={spec.act_dim}"
+        )
+
+
 class RankingGame:
     """All state of one training run, built from a :class:`TrainConfig`."""
 
@@ -214,11 +223,7 @@ class RankingGame:
         self.eval_env = make_env(cfg.env)
         expert = load_expert(cfg)
         spec = env_spec(self.env)
-        if (expert.obs_dim, expert.act_dim) != (spec.obs_dim, spec.act_dim):
-            raise RankGameError(
-                f"expert data has obs_dim={expert.obs_dim}, act_dim={expert.act_dim}; {cfg.env} has "
-                f"obs_dim={spec.obs_dim}, act_dim={spec.act_dim}"
-            )
+        _require_dims(expert, spec, "expert data")
         self.horizon = spec.max_episode_steps or max(len(t) for t in expert.trajectories)
         self.n_pol = cfg.policy_updates or self.horizon
         if cfg.steps < self.n_pol:
@@ -296,12 +301,7 @@ class RankingGame:
         cfg = self.cfg
         path = cfg.preferences if cfg.preferences is not None else shipped_preferences_path(cfg.env)
         data, order = load_preferences(path, cfg.env)
-        spec = env_spec(self.env)
-        if (data.obs_dim, data.act_dim) != (spec.obs_dim, spec.act_dim):
-            raise RankGameError(
-                f"preference data has obs_dim={data.obs_dim}, act_dim={data.act_dim}; {cfg.env} has "
-                f"obs_dim={spec.obs_dim}, act_dim={spec.act_dim}"
-            )
+        _require_dims(data, env_spec(self.env), "preference data")
         ranked = self._inputs([data.trajectories[i] for i in order], "preference data")
         positions = np.arange(len(ranked) + 1) / len(ranked)
         targets = target_schedule(positions, cfg.agent_target, cfg.agent_target + cfg.k, cfg.schedule, cfg.beta)
