@@ -29,6 +29,7 @@ import shutil
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -67,26 +68,55 @@ def archive_if_finished(out: Path, archived: Path) -> None:
             shutil.copyfile(out / name, archived / name)
 
 
+@dataclass(frozen=True)
+class Job:
+    """One ``rankgame train`` run: where it writes, where its results are archived, and what it trains."""
+
+    out: Path
+    archived: Path
+    env: str
+    method: str
+    seed: int
+    train_args: str = ""
+
+    def command(self, steps: int) -> list[str]:
+        """The ``rankgame train`` command line (``--resume`` once the run folder holds metrics)."""
+        cmd = [sys.executable, "-m", "rankgame.cli", "train", "--env", self.env, "--method", self.method]
+        cmd += ["--seed", str(self.seed), "--steps", str(steps), "--out", str(self.out), "--no-progress"]
+        cmd += shlex.split(self.train_args)
+        return cmd + (["--resume"] if (self.out / "metrics.csv").exists() else [])  # continues, or restarts
+
+
 def launch_all(args: argparse.Namespace) -> None:
-    """Run the missing trainings, one single-core process pinned to each of ``--cores``."""
-    jobs = []
-    for env in args.envs:
-        for method in args.methods:
-            for seed in args.seeds:
-                out, archived = run_dir(args.root, env, method, seed), run_dir(args.archive, env, method, seed)
-                archive_if_finished(out, archived)
-                if not (archived / "metrics.csv").exists():
-                    jobs.append((out, archived, env, method, seed))
+    """Run the missing trainings of ``--envs`` x ``--methods`` x ``--seeds``, one per core of ``--cores``."""
+    jobs = [
+        Job(
+            run_dir(args.root, env, method, seed),
+            run_dir(args.archive, env, method, seed),
+            env,
+            method,
+            seed,
+            args.train_args,
+        )
+        for env in args.envs
+        for method in args.methods
+        for seed in args.seeds
+    ]
+    run_jobs(jobs, args.steps, args.cores)
+
+
+def run_jobs(jobs: list[Job], steps: int, cores: list[str]) -> None:
+    """Run every job not yet archived, one single-core process pinned to each of ``cores`` at a time."""
     running: dict[str, tuple[subprocess.Popen, Path, Path]] = {}  # core -> (process, run folder, archive)
-    for out, archived, env, method, seed in jobs:
-        cmd = [sys.executable, "-m", "rankgame.cli", "train", "--env", env, "--method", method, "--seed", str(seed)]
-        cmd += ["--steps", str(args.steps), "--out", str(out), "--no-progress", *shlex.split(args.train_args)]
-        cmd += ["--resume"] if (out / "metrics.csv").exists() else []  # continues, or restarts a run with no checkpoint
-        core = _free_core(running, args.cores)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        log = open(f"{out}.log", "a")  # noqa: SIM115  (closed when the process ends)
-        proc = subprocess.Popen(["taskset", "-c", core, *cmd], stdout=log, stderr=log, env=os.environ)
-        running[core] = (proc, out, archived)
+    for job in jobs:
+        archive_if_finished(job.out, job.archived)
+        if (job.archived / "metrics.csv").exists():
+            continue
+        core = _free_core(running, cores)
+        job.out.parent.mkdir(parents=True, exist_ok=True)
+        log = open(f"{job.out}.log", "a")  # noqa: SIM115  (closed when the process ends)
+        proc = subprocess.Popen(["taskset", "-c", core, *job.command(steps)], stdout=log, stderr=log, env=os.environ)
+        running[core] = (proc, job.out, job.archived)
     for core in list(running):
         _wait_and_archive(*running.pop(core))
 

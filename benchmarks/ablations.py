@@ -1,0 +1,213 @@
+"""The paper's ablations (App. D) as named sets of ``rankgame train`` variants, run and summarized together.
+
+Each ablation compares a few variants of RANK-PAL / RANK-RAL on the same tasks and seeds; a variant is a
+method and the options that differ from the paper's defaults. Runs go to ``--root/ABLATION/VARIANT``
+and, once finished, their ``metrics.csv`` and ``config.json`` are archived under
+``--archive/ABLATION/VARIANT`` (runs already archived are not repeated), exactly as in
+``sample_efficiency.py``, whose runner this uses. The summary is the mean and standard deviation over
+seeds of the normalized score at each ``--at`` step, as JSON and as a Markdown table.
+
+    python benchmarks/ablations.py --list
+    python benchmarks/ablations.py reward-range --envs Hopper-v5 --steps 100000 --at 50000 100000 --dry-run
+    XLA_FLAGS="--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1" \\
+        python benchmarks/ablations.py rankings --envs Hopper-v5 --seeds 0 1 2 --steps 100000 --cores 0 1
+    python benchmarks/ablations.py rankings --envs Hopper-v5 --steps 100000 --summarize-only
+
+Not covered: spectral normalization and state-based mixup (App. D, effect of the regularizer), a fixed
+reward budget for PAL (App. D, Stackelberg game design), and noisy preferences on Door (App. D,
+robustness to noisy preferences), whose pieces rankgame does not implement.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from sample_efficiency import Job, read_scores, run_jobs
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One arm of an ablation: a label, a method and its options beyond the defaults."""
+
+    label: str
+    method: str
+    train_args: str = ""
+
+
+@dataclass(frozen=True)
+class Ablation:
+    """What the paper asks (and where), and the variants that answer it; the first is the reference."""
+
+    section: str
+    question: str
+    variants: tuple[Variant, ...]
+
+
+ABLATIONS: dict[str, Ablation] = {
+    "rankings": Ablation(
+        "App. D, utility of automatically generated rankings",
+        "how much do the automatically generated rankings help?",
+        (Variant("auto", "rank-pal-auto"), Variant("vanilla", "rank-pal-vanilla")),
+    ),
+    "loss": Ablation(
+        "App. D, comparison of imit-game and rank-game",
+        "the regression ranking loss L_k against the supremum loss of adversarial imitation (IMIT)",
+        (
+            Variant("rank-pal", "rank-pal-auto"),
+            Variant("imit-pal", "imit-pal"),
+            Variant("rank-ral", "rank-ral-auto"),
+            Variant("imit-ral", "imit-ral"),
+        ),
+    ),
+    "shaping": Ablation(
+        "App. D, parameterized reward shaping",
+        "how the targets of the auto mixtures are shaped: linear, or exp with temperature beta",
+        (
+            Variant("exp-beta-m1", "rank-pal-auto"),
+            Variant("linear", "rank-pal-auto", "--schedule linear"),
+            Variant("exp-beta-1", "rank-pal-auto", "--beta 1"),
+            Variant("exp-beta-m2", "rank-pal-auto", "--beta -2"),
+            Variant("exp-beta-m5", "rank-pal-auto", "--beta -5"),
+        ),
+    ),
+    "policy-updates": Ablation(
+        "App. D, Stackelberg game design",
+        "Stackelberg design: policy updates (and environment steps) per game iteration, n_pol, for PAL",
+        (
+            Variant("n-pol-1000", "rank-pal-auto"),
+            Variant("n-pol-500", "rank-pal-auto", "--policy-updates 500"),
+            Variant("n-pol-2000", "rank-pal-auto", "--policy-updates 2000"),
+            Variant("n-pol-5000", "rank-pal-auto", "--policy-updates 5000"),
+        ),
+    ),
+    "reward-budget": Ablation(
+        "App. D, Stackelberg game design",
+        "Stackelberg design: reward updates per iteration for RAL, n_rew = passes |D| / batch",
+        (
+            Variant("passes-1", "rank-ral-auto"),
+            Variant("passes-3", "rank-ral-auto", "--reward.ral-passes 3"),
+            Variant("passes-6", "rank-ral-auto", "--reward.ral-passes 6"),
+        ),
+    ),
+    "reward-range": Ablation(
+        "App. D, sensitivity of the reward range",
+        "the performance gap k, with the reward bounded to [-k, k] (R_max = k)",
+        (
+            Variant("k-10", "rank-pal-auto"),
+            Variant("k-1", "rank-pal-auto", "--k 1 --reward.r-max 1"),
+            Variant("k-5", "rank-pal-auto", "--k 5 --reward.r-max 5"),
+            Variant("k-20", "rank-pal-auto", "--k 20 --reward.r-max 20"),
+            Variant("k-50", "rank-pal-auto", "--k 50 --reward.r-max 50"),
+        ),
+    ),
+    "regularizer": Ablation(
+        "App. D, effect of the regularizer",
+        "auto rankings as a regularizer, against weight decay alone",
+        (
+            Variant("auto", "rank-pal-auto"),
+            Variant("vanilla-wd-1e-4", "rank-pal-vanilla"),
+            Variant("vanilla-wd-1e-2", "rank-pal-vanilla", "--reward.weight-decay 1e-2"),
+        ),
+    ),
+    "expert-trajectories": Ablation(
+        "App. D, varying number of expert trajectories",
+        "the number of expert trajectories",
+        (
+            Variant("1", "rank-pal-auto"),
+            Variant("5", "rank-pal-auto", "--expert-trajectories 5"),
+            Variant("10", "rank-pal-auto", "--expert-trajectories 10"),
+        ),
+    ),
+    "preferences": Ablation(
+        "Sec. 5, utility of preferences",
+        "offline rankings (pref) against auto rankings, on tasks with shipped preference data",
+        (
+            Variant("pal-auto", "rank-pal-auto"),
+            Variant("pal-pref", "rank-pal-pref"),
+            Variant("ral-auto", "rank-ral-auto"),
+            Variant("ral-pref", "rank-ral-pref"),
+        ),
+    ),
+}
+
+
+def ablation_jobs(name: str, envs: list[str], seeds: list[int], root: Path, archive: Path) -> list[tuple[Variant, Job]]:
+    """Every (variant, env, seed) run of an ablation, variant by variant."""
+    return [
+        (
+            variant,
+            Job(
+                root / name / variant.label / f"{env}__s{seed}",
+                archive / name / variant.label / f"{env}__s{seed}",
+                env,
+                variant.method,
+                seed,
+                variant.train_args,
+            ),
+        )
+        for variant in ABLATIONS[name].variants
+        for env in envs
+        for seed in seeds
+    ]
+
+
+def summarize(jobs: list[tuple[Variant, Job]], at: list[int]) -> list[dict]:
+    """Mean and standard deviation over seeds of each variant's score at each step of ``at``."""
+    groups: dict[tuple[str, str], list[dict[int, float]]] = {}
+    for variant, job in jobs:
+        groups.setdefault((job.env, variant.label), []).append(read_scores(job.out, job.archived))
+    rows = []
+    for (env, label), runs in groups.items():
+        for step in at:
+            scores = [run[step] for run in runs if step in run]
+            mean = round(float(np.mean(scores)), 1) if scores else None
+            std = round(float(np.std(scores)), 1) if scores else None
+            rows.append({"env": env, "variant": label, "step": step, "seeds": len(scores), "mean": mean, "std": std})
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("ablation", nargs="?", choices=list(ABLATIONS), help="which ablation to run or summarize")
+    parser.add_argument("--list", action="store_true", help="list the ablations and their variants")
+    parser.add_argument("--envs", nargs="+", default=["Hopper-v5"])
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    parser.add_argument("--steps", type=int, default=300_000)
+    parser.add_argument("--at", nargs="+", type=int, default=[100_000, 300_000])
+    parser.add_argument("--root", type=Path, default=Path("runs/ablations"))
+    parser.add_argument("--archive", type=Path, default=Path("benchmarks/results/ablations"))
+    parser.add_argument("--cores", nargs="+", default=["0", "1"], help="CPU cores to pin one run each to")
+    parser.add_argument("--dry-run", action="store_true", help="print the training commands without running them")
+    parser.add_argument("--summarize-only", action="store_true")
+    args = parser.parse_args()
+    if args.list:
+        for name, ablation in ABLATIONS.items():
+            print(f"{name} ({ablation.section}): {ablation.question}")
+            for variant in ablation.variants:
+                print(f"    {variant.label:<16} {variant.method:<17} {variant.train_args}")
+        return
+    if args.ablation is None:
+        parser.error("name an ablation (see --list)")
+    jobs = ablation_jobs(args.ablation, args.envs, args.seeds, args.root, args.archive)
+    if args.dry_run:
+        for _, job in jobs:
+            print(shlex.join(["rankgame", *job.command(args.steps)[3:]]))
+        return
+    if not args.summarize_only:
+        run_jobs([job for _, job in jobs], args.steps, args.cores)
+    rows = summarize(jobs, args.at)
+    print(json.dumps({"ablation": args.ablation, "at_steps": rows}))
+    print("\n| env | variant | steps | seeds | normalized score |")
+    print("| --- | --- | --- | --- | --- |")
+    for row in rows:
+        score = "-" if row["mean"] is None else f"{row['mean']} ± {row['std']}"
+        print(f"| {row['env']} | {row['variant']} | {row['step'] // 1000}k | {row['seeds']} | {score} |")
+
+
+if __name__ == "__main__":
+    main()
