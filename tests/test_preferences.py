@@ -124,6 +124,26 @@ def test_offline_chain_samples_states_and_snippets_with_their_behaviors_targets(
         OfflineRankings(ranked, expert, targets[::-1], snippet_length=4)
 
 
+def test_noisy_rankings_relabel_a_fixed_share_of_offline_labels_with_other_ranks() -> None:
+    ranked, expert = _constant_chain(4, 200)
+    targets = np.array([0.0, 1.0, 2.0, 3.0, 5.0])
+    clean = OfflineRankings(ranked, expert, targets, snippet_length=10)
+    np.testing.assert_array_equal(clean.state_rank, np.repeat(np.arange(5)[:, None], 200, axis=1))
+    noisy = OfflineRankings(ranked, expert, targets, snippet_length=10, noise=0.4, noise_seed=1)
+    own = np.arange(4)[:, None]
+    for table in (noisy.state_rank, noisy.snippet_rank):
+        flipped = table[:4] != own
+        assert abs(flipped.mean() - 0.4) < 0.05  # about 40% of offline labels, never the expert's
+        assert np.all(table[4] == 4) and np.all((table[:4] >= 0) & (table[:4] < 4))
+    # The corruption is fixed for the run: sampled targets follow the noisy table.
+    states, state_targets, snippets, snippet_targets = noisy.sample(np.random.default_rng(0), 1, 2000)
+    behavior = np.where(states[0, :, 0] == 99.0, 4, states[0, :, 0]).astype(int)
+    t = states[0, :, 1].astype(int)
+    np.testing.assert_array_equal(state_targets[0], targets[noisy.state_rank[behavior, t]])
+    with pytest.raises(ValueError, match="at least 2 offline trajectories"):
+        OfflineRankings(ranked[:1], expert, targets[[0, 4]], snippet_length=10, noise=0.1)
+
+
 def test_tabular_fit_regresses_each_offline_trajectory_to_its_rank_target() -> None:
     # One-hot states: the agent, three offline trajectories and the expert each visit their own state, so
     # every term of Eq. 6 is minimized at r(s) = the target of the behavior that visits s.
@@ -186,7 +206,9 @@ def test_preferences_command_and_pref_training_on_the_toy_task(toy_expert_file: 
     assert float(row["reward/expert"]) > float(row["reward/agent"])
 
 
-def test_bad_preference_input_gives_one_line_errors(toy_expert_file: Path, tmp_path: Path) -> None:
+def test_bad_preference_input_gives_one_line_errors(
+    toy_expert_file: Path, toy_preference_file: Path, tmp_path: Path
+) -> None:
     base = ["train", *TOY_TRAIN_ARGS, "--steps", "100", "--expert", str(toy_expert_file), "--out", str(tmp_path / "x")]
     assert_one_line_error(run_cli(*base, "--method", "rank-pal-pref"), "no shipped preference data for 'rankgame/")
     hopper_prefs = str(shipped_preferences_path("Hopper-v5"))
@@ -201,5 +223,9 @@ def test_bad_preference_input_gives_one_line_errors(toy_expert_file: Path, tmp_p
     assert_one_line_error(
         run_cli(*base, "--method", "rank-ral-pref", "--reward.pref-weight", "1.5"), "pref_weight must lie in [0, 1]"
     )
+    pref = [*base, "--method", "rank-ral-pref", "--preferences", str(toy_preference_file)]
+    assert_one_line_error(run_cli(*pref, "--pref-noise", "2"), "--pref-noise must lie in [0, 1]")
+    assert_one_line_error(run_cli(*base, "--pref-noise", "0.2"), "--pref-noise is used only by the pref methods")
+    assert_one_line_error(run_cli(*pref, "--reward.snippet-length", "41"), "snippet length must lie in [1, 40]")
     assert_one_line_error(run_cli("preferences", "--run", str(tmp_path)), "no checkpoint.npz in")
     assert_one_line_error(run_cli("preferences", "--count", "1"), "--count must be at least 2")

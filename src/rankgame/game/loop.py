@@ -81,6 +81,9 @@ class TrainConfig:
     preferences: Path | None = None
     """Offline trajectories ranked below the expert, for the pref methods (default: the shipped data
     for ENV; make a file with `rankgame preferences`)."""
+    pref_noise: float = 0.0
+    """Share of the offline rankings' state and snippet labels replaced, once per run, by the rank of
+    another offline trajectory (noisy preferences; pref methods)."""
     expert_trajectories: int = 1
     """How many expert trajectories to imitate (the first ones of the file)."""
     setting: Literal["lfo", "lfd"] = "lfo"
@@ -150,6 +153,10 @@ class TrainConfig:
             raise RankGameError("--interpolations must be >= 0")
         if self.preferences is not None and METHODS[self.method].rankings != "pref":
             raise RankGameError(f"--preferences is used only by the pref methods, not {self.method}")
+        if not 0.0 <= self.pref_noise <= 1.0:
+            raise RankGameError(f"--pref-noise must lie in [0, 1] (got {self.pref_noise})")
+        if self.pref_noise > 0.0 and METHODS[self.method].rankings != "pref":
+            raise RankGameError(f"--pref-noise is used only by the pref methods, not {self.method}")
         if self.setting == "lfo" and self.resolved_reward_input == "sa":
             raise RankGameError("--reward-input sa needs expert actions: use --setting lfd")
         if not np.isfinite([self.k, self.agent_target, self.beta]).all():
@@ -306,9 +313,9 @@ class RankingGame:
         positions = np.arange(len(ranked) + 1) / len(ranked)
         targets = target_schedule(positions, cfg.agent_target, cfg.agent_target + cfg.k, cfg.schedule, cfg.beta)
         try:
-            return OfflineRankings(ranked, expert_inputs, targets, cfg.reward.snippet_length)
+            return OfflineRankings(ranked, expert_inputs, targets, cfg.reward.snippet_length, cfg.pref_noise, cfg.seed)
         except ValueError as exc:
-            raise RankGameError(f"--reward.snippet-length: {exc}") from None
+            raise RankGameError(f"bad preference setting: {exc}") from None
 
     def env_step(self) -> None:
         """One environment step and the SAC updates due after it."""

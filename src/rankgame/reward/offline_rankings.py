@@ -7,6 +7,11 @@ SL_k, Eq. 8, with offline trajectories in place of mixtures). As in App. B.3, ev
 of ``l`` consecutive steps is also regressed: its summed reward to ``k_i l``. The snippet term is
 divided by ``l^2``, so that it is the squared error of the snippet's *mean* reward and lies on the
 same scale as the per-state term.
+
+Noisy rankings (App. D, robustness to noisy preferences, which flips a share of snippet comparisons)
+are simulated with ``noise``: that share of the offline trajectories' state and snippet labels is
+replaced, once and for the whole run, by the rank of another offline trajectory drawn uniformly.
+The expert's labels stay: it grounds the chain.
 """
 
 from __future__ import annotations
@@ -23,9 +28,19 @@ class OfflineRankings:
         expert: ``(M, H, d)`` expert reward inputs, the top of the chain.
         targets: ``(p + 1,)`` non-decreasing regression targets, the expert's last.
         snippet_length: ``l``, steps per snippet (at most H).
+        noise: share of offline labels given another trajectory's rank, in ``[0, 1]``.
+        noise_seed: seed of which labels are corrupted and how.
     """
 
-    def __init__(self, ranked: np.ndarray, expert: np.ndarray, targets: np.ndarray, snippet_length: int) -> None:
+    def __init__(
+        self,
+        ranked: np.ndarray,
+        expert: np.ndarray,
+        targets: np.ndarray,
+        snippet_length: int,
+        noise: float = 0.0,
+        noise_seed: int = 0,
+    ) -> None:
         if ranked.ndim != 3 or len(ranked) < 1 or expert.ndim != 3 or ranked.shape[1:] != expert.shape[1:]:
             raise ValueError(
                 f"offline inputs {ranked.shape} and expert inputs {expert.shape} must both be (n, H, d), n >= 1"
@@ -34,11 +49,27 @@ class OfflineRankings:
             raise ValueError("offline rankings need one non-decreasing target per trajectory plus the expert's")
         if not 1 <= snippet_length <= ranked.shape[1]:
             raise ValueError(f"the snippet length must lie in [1, {ranked.shape[1]}] (the horizon)")
+        if not 0.0 <= noise <= 1.0 or (noise > 0.0 and len(ranked) < 2):
+            raise ValueError("the preference noise must lie in [0, 1], and needs at least 2 offline trajectories")
         self.ranked = ranked.astype(np.float32)
         self.expert = expert.astype(np.float32)
         self.targets = targets.astype(np.float32)
         self.snippet_length = snippet_length
         self.horizon = ranked.shape[1]
+        noise_rng = np.random.default_rng(noise_seed)
+        # The rank each behavior's state at time t, and its snippet starting at t, is labelled with.
+        self.state_rank = self._noisy_ranks(noise_rng, self.horizon, noise)
+        self.snippet_rank = self._noisy_ranks(noise_rng, self.horizon - snippet_length + 1, noise)
+
+    def _noisy_ranks(self, rng: np.random.Generator, n_positions: int, noise: float) -> np.ndarray:
+        """Labels ``(p + 1, n_positions)``: behavior b's own rank, except that a ``noise`` share of the offline
+        rows' entries hold a uniformly drawn other offline rank."""
+        p = len(self.ranked)
+        ranks = np.repeat(np.arange(p + 1)[:, None], n_positions, axis=1)
+        flipped = rng.uniform(size=(p, n_positions)) < noise
+        other = (ranks[:p] + rng.integers(1, max(p, 2), size=(p, n_positions))) % p  # never the own rank
+        ranks[:p] = np.where(flipped, other, ranks[:p])
+        return ranks
 
     @property
     def n_behaviors(self) -> int:
@@ -63,7 +94,8 @@ class OfflineRankings:
         start = rng.integers(0, self.horizon - self.snippet_length + 1, size=(n_batches, n_snippets))
         steps = start[..., None] + np.arange(self.snippet_length)
         snippets = self._states(rng, np.repeat(snippet_behavior[..., None], self.snippet_length, axis=-1), steps)
-        return states, self.targets[behavior], snippets, self.targets[snippet_behavior]
+        state_targets = self.targets[self.state_rank[behavior, t]]
+        return states, state_targets, snippets, self.targets[self.snippet_rank[snippet_behavior, start]]
 
     def _states(self, rng: np.random.Generator, behavior: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Inputs ``(n, B, [l,] d)`` at times ``t`` of behaviors ``behavior`` (both ``(n, B[, l])``).
