@@ -93,8 +93,10 @@ def episodes_from_replay(
     episodes = []
     for k, (start, stop) in enumerate(zip(starts, stops, strict=True)):
         length = stop - start
-        terminated = bool(dones[stop - 1]) if length > 0 else False
-        if length == 0 or (k == 0 and wrapped) or (not terminated and length != horizon):
+        if length == 0 or (k == 0 and wrapped):
+            continue
+        terminated = bool(dones[stop - 1])
+        if not terminated and length != horizon:
             continue
         flags = np.zeros(length, bool)
         flags[-1] = True
