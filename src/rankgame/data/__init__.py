@@ -1,0 +1,22 @@
+"""Data shipped with rankgame: one ``<env_id>.npz`` trajectory file per task in a package folder."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rankgame.errors import RankGameError
+
+
+def shipped_ids(folder: Path) -> list[str]:
+    """Environment ids with a file in ``folder``, sorted."""
+    return sorted(path.stem for path in folder.glob("*.npz"))
+
+
+def shipped_path(folder: Path, env_id: str, what: str, instead: str) -> Path:
+    """``folder/<env_id>.npz``, or a :class:`RankGameError` naming the ids that have ``what`` and what to do
+    ``instead``."""
+    path = folder / f"{env_id}.npz"
+    if not path.is_file():
+        available = ", ".join(shipped_ids(folder)) or "none"
+        raise RankGameError(f"no shipped {what} for {env_id!r} (available: {available}); {instead}")
+    return path

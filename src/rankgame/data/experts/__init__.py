@@ -12,24 +12,20 @@ from typing import Any
 
 import numpy as np
 
+from rankgame.data import shipped_ids, shipped_path
 from rankgame.data.trajectories import TrajectoryFile, load_trajectories
-from rankgame.errors import RankGameError
 
 EXPERT_DIR = Path(__file__).parent
 
 
 def shipped_envs() -> list[str]:
     """Environment ids with shipped expert data, sorted."""
-    return sorted(path.stem for path in EXPERT_DIR.glob("*.npz"))
+    return shipped_ids(EXPERT_DIR)
 
 
 def shipped_expert_path(env_id: str) -> Path:
-    """Path of the shipped expert file of ``env_id``; a :class:`RankGameError` if there is none."""
-    path = EXPERT_DIR / f"{env_id}.npz"
-    if not path.is_file():
-        available = ", ".join(shipped_envs()) or "none"
-        raise RankGameError(f"no shipped expert data for {env_id!r} (available: {available}); pass your own file")
-    return path
+    """Path of the shipped expert file of ``env_id``; a :class:`~rankgame.errors.RankGameError` if there is none."""
+    return shipped_path(EXPERT_DIR, env_id, "expert data", "pass your own file")
 
 
 def load_shipped_expert(env_id: str) -> TrajectoryFile:

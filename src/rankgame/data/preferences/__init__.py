@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from rankgame.checkpoint import load_checkpoint
+from rankgame.data import shipped_path
 from rankgame.data.trajectories import Trajectory, TrajectoryFile, load_trajectories, save_trajectories
 from rankgame.envs.make import env_spec, make_env
 from rankgame.envs.rollout import to_env_action
@@ -26,21 +27,10 @@ from rankgame.errors import RankGameError
 PREFERENCE_DIR = Path(__file__).parent
 
 
-def shipped_preference_envs() -> list[str]:
-    """Environment ids with shipped preference data, sorted."""
-    return sorted(path.stem for path in PREFERENCE_DIR.glob("*.npz"))
-
-
 def shipped_preferences_path(env_id: str) -> Path:
     """Path of the shipped preference file of ``env_id``; a :class:`RankGameError` if there is none."""
-    path = PREFERENCE_DIR / f"{env_id}.npz"
-    if not path.is_file():
-        available = ", ".join(shipped_preference_envs()) or "none"
-        raise RankGameError(
-            f"no shipped preference data for {env_id!r} (available: {available}); make a file with "
-            "`rankgame preferences` and pass it with --preferences"
-        )
-    return path
+    instead = "make a file with `rankgame preferences` and pass it with --preferences"
+    return shipped_path(PREFERENCE_DIR, env_id, "preference data", instead)
 
 
 def ranking_order(data: TrajectoryFile) -> np.ndarray:
