@@ -51,8 +51,9 @@ class OfflineRankings:
             raise ValueError(f"the snippet length must lie in [1, {ranked.shape[1]}] (the horizon)")
         if not 0.0 <= noise <= 1.0 or (noise > 0.0 and len(ranked) < 2):
             raise ValueError("the preference noise must lie in [0, 1], and needs at least 2 offline trajectories")
-        self.ranked = ranked.astype(np.float32)
-        self.expert = expert.astype(np.float32)
+        # Offline trajectories first, then the expert's: one store, so a batch is one gather.
+        self.trajectories = np.concatenate([ranked, expert]).astype(np.float32)
+        self.ranked, self.expert = self.trajectories[: len(ranked)], self.trajectories[len(ranked) :]
         self.targets = targets.astype(np.float32)
         self.snippet_length = snippet_length
         self.horizon = ranked.shape[1]
@@ -103,8 +104,7 @@ class OfflineRankings:
         An expert behavior reads one uniformly drawn expert trajectory per ``(n, B)`` entry, so a
         snippet stays within one trajectory.
         """
+        p = len(self.ranked)
         expert_pick = rng.integers(0, len(self.expert), size=behavior.shape[:2])
         expert_pick = expert_pick.reshape(expert_pick.shape + (1,) * (behavior.ndim - 2))
-        offline = self.ranked[np.minimum(behavior, len(self.ranked) - 1), t]
-        expert = self.expert[expert_pick, t]
-        return np.where((behavior == len(self.ranked))[..., None], expert, offline)
+        return self.trajectories[np.where(behavior == p, p + expert_pick, behavior), t]
