@@ -239,6 +239,8 @@ def test_bad_training_input_gives_one_line_errors(toy_expert_file: Path, tmp_pat
     _one_line_error([*base, "--expert", str(toy_expert_file), "--k", "30"], "exceed the reward bound")
     _one_line_error([*base, "--expert", str(toy_expert_file), "--reward-input", "sa"], "use --setting lfd")
     _one_line_error([*base, "--expert", str(toy_expert_file), "--seed", "-1"], "--seed must be >= 0")
+    vanilla_mixup = [*base, "--expert", str(toy_expert_file), "--method", "rank-pal-vanilla", "--mixup", "state"]
+    _one_line_error(vanilla_mixup, "--mixup is used only by the auto methods")
     _one_line_error([*base, "--expert", str(toy_expert_file), "--reward-obs", "0:3"], "--reward-obs: '0:3' is not")
     _one_line_error([*base, "--expert", str(toy_expert_file), "--sac.gamma", "1"], "gamma must lie in [0, 1)")
     _one_line_error([*base, "--recipe", "fancy"], "unknown recipe 'fancy'; choose from paper, tuned")

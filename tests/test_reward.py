@@ -9,8 +9,8 @@ import pytest
 
 from rankgame.reward.features import trajectory_features
 from rankgame.reward.losses import regression_ranking_loss, supremum_loss, weighted_sum
-from rankgame.reward.nets import bound_reward, feature_columns, parse_obs_columns
-from rankgame.reward.player import RewardConfig, RewardPlayer
+from rankgame.reward.nets import SpectralDense, bound_reward, feature_columns, parse_obs_columns
+from rankgame.reward.player import RewardConfig, RewardPlayer, RewardState
 from rankgame.reward.ranking_data import RankingData
 from rankgame.reward.targets import lambda_grid, target_schedule
 
@@ -133,6 +133,42 @@ def test_mixup_is_time_aligned_with_scheduled_targets() -> None:
         assert e == (lam == 1.0)
 
 
+@pytest.mark.parametrize("time_aligned", [True, False])
+def test_state_mixup_pairs_agent_steps_with_expert_steps_from_any_time(time_aligned: bool) -> None:
+    # Agent step t is (t, 0) and expert step t' is (0, 100 + t'), so the half-way mixture
+    # (t / 2, 50 + t' / 2) tells which two steps were mixed.
+    horizon = 5
+    steps = np.arange(horizon, dtype=np.float32)
+    expert = np.stack([np.zeros(horizon), 100.0 + steps], axis=1)[None].astype(np.float32)
+    agent = np.stack([steps, np.zeros(horizon)], axis=1).astype(np.float32)
+    data = RankingData(expert, np.array([0.0, 0.5, 1.0]), np.array([0.0, 4.0, 10.0]), 0.3, time_aligned=time_aligned)
+    data.add([agent] * 20, np.random.default_rng(0))
+    inputs, targets, _ = data.sample(np.random.default_rng(1), 8, 256)
+    halfway = inputs[targets == 4.0]
+    pairs = np.rint(np.column_stack([2 * halfway[:, 0], 2 * halfway[:, 1] - 100])).astype(int)
+    held_inputs, held_targets, _ = data.holdout()
+    held = np.rint(2 * held_inputs[held_targets == 4.0]).astype(int)
+    held_pairs = np.column_stack([held[:, 0], held[:, 1] - 100])
+    if time_aligned:
+        assert np.all(pairs[:, 0] == pairs[:, 1]) and np.all(held_pairs[:, 0] == held_pairs[:, 1])
+    else:
+        # Every (t, t') pair turns up: 25 pairs, each with probability 1/25 per draw over ~680 draws.
+        assert len({tuple(pair) for pair in pairs}) == horizon * horizon
+        assert np.mean(held_pairs[:, 0] != held_pairs[:, 1]) > 0.5
+        assert np.array_equal(data.holdout()[0], held_inputs)  # the holdout stays fixed
+
+
+def test_old_checkpoints_hold_out_time_aligned_pairs() -> None:
+    expert = np.arange(8, dtype=np.float32).reshape(1, 4, 2)
+    data = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.5)
+    data.add([np.zeros((4, 2), np.float32)] * 3, np.random.default_rng(0))
+    state = data.state_dict()
+    state["ranking/holdout_rows"] = state["ranking/holdout_rows"][:, :3]  # as written before state mixup
+    restored = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.5)
+    restored.load_state_dict(state)
+    np.testing.assert_array_equal(restored.holdout_rows, data.holdout_rows)
+
+
 def test_holdout_is_a_shuffled_share_of_rows() -> None:
     expert = np.zeros((2, 100, 1), np.float32)
     data = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), holdout_fraction=0.1)
@@ -164,6 +200,35 @@ def test_tabular_fit_approaches_the_closed_form() -> None:
     # Expected from the empirical visitation counts of this sample.
     p_pi, p_e = agent.mean(0), expert.mean(0)
     np.testing.assert_allclose(fitted, k * p_e / (p_e + p_pi), atol=0.03)
+
+
+def test_spectral_dense_divides_the_kernel_by_its_largest_singular_value() -> None:
+    layer = SpectralDense(2)
+    params = {"params": {"kernel": jnp.array([[3.0, 0.0], [0.0, 1.0]]), "bias": jnp.array([0.5, -0.5])}}
+    out = layer.apply(params, jnp.array([[1.0, 1.0], [2.0, -3.0]]))
+    np.testing.assert_allclose(out, [[1.0 + 0.5, 1 / 3 - 0.5], [2.0 + 0.5, -1.0 - 0.5]], rtol=1e-6)
+    # The gradient treats the singular vectors as constants: sigma = u^T W v = W00 here (u = v = e0),
+    # and the second output at x = (1, 1) is (W01 + W11) / W00 + b1, whose gradient in W is
+    # [[-(W01 + W11) / W00^2, 1 / W00], [0, 1 / W00]].
+    grad = jax.grad(lambda p: layer.apply(p, jnp.array([[1.0, 1.0]]))[0, 1])(params)
+    np.testing.assert_allclose(grad["params"]["kernel"], [[-1 / 9, 1 / 3], [0.0, 1 / 3]], rtol=1e-5, atol=1e-7)
+
+
+def test_a_spectrally_normalized_reward_is_1_lipschitz_and_still_fits() -> None:
+    cfg = RewardConfig(hidden_sizes=(32, 32), spectral_norm=True, weight_decay=0.0, batch_size=256)
+    player = RewardPlayer(3, "s", "regression", cfg)
+    state = player.init(jax.random.key(0))
+    big = jax.tree_util.tree_map(lambda w: 50.0 * w, state.params)  # normalization undoes any scale
+    x, y = jax.random.normal(jax.random.key(1), (2, 512, 3)) * 3.0
+    gap = np.abs(np.asarray(player.net.apply(big, x) - player.net.apply(big, y)))
+    assert np.all(gap <= np.linalg.norm(np.asarray(x - y), axis=1) + 1e-4)
+    rng = np.random.default_rng(0)
+    expert = np.full((1, 100, 3), 1.5, np.float32)
+    data = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), holdout_fraction=0.0)
+    data.add([np.full((100, 3), -1.5, np.float32)], rng)
+    state, _ = player.fit_steps(state, data, 400, rng)
+    fitted = np.asarray(player.reward(state.params, jnp.array([[-1.5] * 3, [1.5] * 3])))
+    np.testing.assert_allclose(fitted, [0.0, 1.0], atol=0.05)  # the points are ~5.2 apart: a gap of 1 fits
 
 
 def test_supremum_player_separates_agent_and_expert() -> None:
@@ -223,3 +288,37 @@ def test_ral_budget_is_passes_over_the_real_agent_states(
     monkeypatch.setattr(player, "fit_steps", lambda state, data, n, rng: (asked.append(n), (state, 0.0))[1])
     fit_reward("ral", player, player.init(jax.random.key(0)), data, np.random.default_rng(1))
     assert asked == [expected]
+
+
+@pytest.mark.parametrize(
+    ("leader", "budget", "expected"),
+    [
+        ("pal", "leader", "holdout"),
+        ("ral", "leader", "passes"),
+        ("pal", "passes", "passes"),
+        ("ral", "holdout", "holdout"),
+    ],
+)
+def test_the_budget_option_swaps_the_leaders_budgets(
+    monkeypatch: pytest.MonkeyPatch, leader: str, budget: str, expected: str
+) -> None:
+    from rankgame.game.leaders import fit_reward
+
+    data = RankingData(np.zeros((1, 10, 2), np.float32), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.1, 1)
+    data.add([np.zeros((10, 2), np.float32)] * 3, np.random.default_rng(0))
+    player = RewardPlayer(2, "s", "regression", RewardConfig(batch_size=4, ral_passes=2.0, budget=budget))
+    used: list[str] = []
+
+    def fixed_steps(state: RewardState, data: RankingData, n: int, rng: np.random.Generator) -> tuple:
+        used.append(f"passes {n}")
+        return state, 0.0
+
+    def until_converged(state: RewardState, data: RankingData, rng: np.random.Generator) -> tuple:
+        used.append("holdout")
+        return state, {}
+
+    monkeypatch.setattr(player, "fit_steps", fixed_steps)
+    monkeypatch.setattr(player, "fit_until_converged", until_converged)
+    fit_reward(leader, player, player.init(jax.random.key(0)), data, np.random.default_rng(1))
+    # 30 real states, 2 passes of batch 4: ceil(60 / 4) = 15 gradient steps.
+    assert used == (["holdout"] if expected == "holdout" else ["passes 15"])

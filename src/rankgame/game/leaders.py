@@ -10,6 +10,9 @@
   gradient step draws one mixture per sampled state, so with the default grid one pass covers a sixth
   of the mixtures. RAL holds out the same shuffled share of agent rows (time steps) as PAL
   (``holdout_fraction``), only to log a holdout loss; it trains on the rest.
+
+``RewardConfig.budget`` can swap the two budgets (App. D, Stackelberg game design): a PAL reward
+trained for a fixed number of passes, or a RAL reward trained until its holdout stops improving.
 """
 
 from __future__ import annotations
@@ -35,10 +38,11 @@ def add_agent_data(
 def fit_reward(
     leader: str, player: RewardPlayer, state: RewardState, data: RankingData, rng: np.random.Generator
 ) -> tuple[RewardState, dict[str, float]]:
-    """One reward-player turn with the leader's budget."""
-    if leader == "pal":
-        return player.fit_until_converged(state, data, rng)
+    """One reward-player turn with the leader's budget, or the one ``RewardConfig.budget`` names."""
     cfg = player.config
+    budget = cfg.budget if cfg.budget != "leader" else ("holdout" if leader == "pal" else "passes")
+    if budget == "holdout":
+        return player.fit_until_converged(state, data, rng)
     n_updates = max(1, math.ceil(cfg.ral_passes * data.n_real_states / cfg.batch_size))
     state, train_loss = player.fit_steps(state, data, n_updates, rng)
     return state, {

@@ -106,6 +106,9 @@ class TrainConfig:
     follows the learned reward) or done (a terminal mask: ending is worth 0, as in the authors' code)."""
     interpolations: int = 4
     """Interior mixtures between agent and expert (auto rankings): 4 gives lambda = 0, 0.2, ..., 1."""
+    mixup: Literal["trajectory", "state"] = "trajectory"
+    """How the auto rankings pair agent and expert states: trajectory (time-aligned, the paper's
+    method) or state (an expert state from a random time step, the regularizer ablation's baseline)."""
     policy_updates: int | None = None
     """Environment steps (and SAC updates) per game iteration, n_pol; default: the horizon H."""
     eval_every: int = 10_000
@@ -151,6 +154,8 @@ class TrainConfig:
             raise RankGameError("--k must be positive")
         if self.interpolations < 0:
             raise RankGameError("--interpolations must be >= 0")
+        if self.mixup != "trajectory" and METHODS[self.method].rankings != "auto":
+            raise RankGameError(f"--mixup is used only by the auto methods, not {self.method}")
         if self.preferences is not None and METHODS[self.method].rankings != "pref":
             raise RankGameError(f"--preferences is used only by the pref methods, not {self.method}")
         if not 0.0 <= self.pref_noise <= 1.0:
@@ -270,7 +275,14 @@ class RankingGame:
 
         lambdas = lambda_grid(cfg.interpolations) if self.method.rankings == "auto" else np.array([0.0, 1.0])
         targets = target_schedule(lambdas, cfg.agent_target, cfg.agent_target + cfg.k, cfg.schedule, cfg.beta)
-        self.data = RankingData(expert_inputs, lambdas, targets, cfg.reward.holdout_fraction, flag_index=spec.obs_dim)
+        self.data = RankingData(
+            expert_inputs,
+            lambdas,
+            targets,
+            cfg.reward.holdout_fraction,
+            flag_index=spec.obs_dim,
+            time_aligned=cfg.mixup == "trajectory",
+        )
         self.expert_return = float(expert.returns.mean())
         self.random_return = float(expert.metadata.get("random_return_mean", np.nan))
         if not np.isfinite(self.random_return):  # expert file without it: measure on the evaluation env

@@ -20,21 +20,50 @@ RewardInput = Literal["s", "ss", "sa"]
 Bound = Literal["clip", "tanh"]
 
 
+class SpectralDense(nn.Module):
+    """Dense layer ``(B, n_in) -> (B, features)`` whose kernel is divided by its spectral norm
+    (Miyato et al., 2018), so the layer is 1-Lipschitz.
+
+    The largest singular value is computed exactly (an SVD of the small kernel at every call) rather
+    than by one power-iteration step per update with a stored vector: the result is what power
+    iteration converges to, and the layer keeps no state besides its parameters. As in the usual
+    implementation, the gradient treats the singular vectors as constants: sigma = u^T W v.
+    """
+
+    features: int
+
+    @nn.compact
+    def __call__(self, x: jax.Array) -> jax.Array:
+        kernel = self.param("kernel", nn.initializers.lecun_normal(), (x.shape[-1], self.features))
+        bias = self.param("bias", nn.initializers.zeros_init(), (self.features,))
+        u, _, vt = jnp.linalg.svd(jax.lax.stop_gradient(kernel), full_matrices=False)
+        sigma = u[:, 0] @ kernel @ vt[0]
+        return x @ (kernel / sigma) + bias
+
+
 class RewardNet(nn.Module):
     """ReLU MLP ``features (B, d) -> raw reward (B,)`` (every hidden layer has its activation).
 
     ``columns``, if given, are the entries of each input row the network reads (see
-    :func:`feature_columns`); the others are ignored.
+    :func:`feature_columns`); the others are ignored. ``spectral_norm`` normalizes every layer,
+    the output layer included, by its spectral norm (the regularizer ablation, App. D), so the
+    reward is 1-Lipschitz in its inputs.
     """
 
     hidden_sizes: tuple[int, ...] = (64, 64)
     columns: tuple[int, ...] | None = None
+    spectral_norm: bool = False
 
     @nn.compact
     def __call__(self, features: jax.Array) -> jax.Array:
         if self.columns is not None:
             features = features[..., np.asarray(self.columns)]
-        return MLP(self.hidden_sizes, 1)(features)[..., 0]
+        if not self.spectral_norm:
+            return MLP(self.hidden_sizes, 1)(features)[..., 0]
+        x = features
+        for width in self.hidden_sizes:
+            x = nn.relu(SpectralDense(width)(x))
+        return SpectralDense(1)(x)[..., 0]
 
 
 def bound_reward(raw: jax.Array, r_max: float, bound: Bound) -> jax.Array:

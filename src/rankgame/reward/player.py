@@ -50,20 +50,28 @@ class RewardConfig:
     r_max: float = 10.0
     """Rewards given to the policy are bounded to [-r_max, r_max]."""
     holdout_fraction: float = 0.1
-    """Share of agent rows held out of training, at most 0.5: PAL stops fitting when their loss stops
-    improving; RAL only logs their loss."""
+    """Share of agent rows held out of training, at most 0.5: the holdout budget (PAL's) stops fitting
+    when their loss stops improving; the passes budget (RAL's) only logs their loss."""
     patience: int = 3
-    """Epochs without holdout improvement before fitting stops (PAL)."""
+    """Epochs without holdout improvement before fitting stops (holdout budget)."""
     min_improvement: float = 0.01
-    """Relative decrease of the holdout loss that counts as an improvement (PAL)."""
+    """Relative decrease of the holdout loss that counts as an improvement (holdout budget)."""
     max_epochs: int = 50
-    """Upper bound on epochs per fit (PAL)."""
+    """Upper bound on epochs per fit (holdout budget)."""
+    budget: Literal["leader", "holdout", "passes"] = "leader"
+    """How long the reward trains each iteration: holdout (until the holdout loss stops improving),
+    passes (n_rew = ral_passes |D| / batch_size gradient steps), or leader: the paper's choice for the
+    leader, holdout for PAL and passes for RAL (Table 4; the other pairings are App. D's ablation)."""
     ral_passes: float = 1.0
-    """Passes over the agent data per iteration (RAL): n_rew = ral_passes |D| / batch_size gradient
-    steps, |D| = real agent states so far (each step draws one mixture per sampled state)."""
+    """Passes over the agent data per iteration with the passes budget (RAL's, by default): n_rew =
+    ral_passes |D| / batch_size gradient steps, |D| = the real agent states the reward trains on (each
+    step draws one mixture per sampled state)."""
     pref_weight: float = 0.3
     """Weight of the offline rankings' loss in the (pref) methods, ``1 - alpha`` in Eq. 6 (the paper's
     Table 4: offline rankings loss weight 0.3); the agent-vs-expert ranking gets the rest."""
+    spectral_norm: bool = False
+    """Divide every layer's weights by their spectral norm (a regularizer the paper compares auto
+    rankings with, App. D; off in the paper's method)."""
     snippet_length: int = 10
     """Steps per snippet of an offline trajectory whose summed reward is regressed to k_i l (pref)."""
     chunk: int = 8
@@ -79,6 +87,7 @@ class RewardConfig:
             (self.r_max > 0, "r_max must be positive"),
             (0.0 <= self.holdout_fraction <= 0.5, "holdout_fraction must lie in [0, 0.5]"),
             (self.patience > 0 and self.max_epochs > 0, "patience and max_epochs must be positive"),
+            (self.budget in ("leader", "holdout", "passes"), "budget must be leader, holdout or passes"),
             (self.ral_passes > 0, "ral_passes must be positive"),
             (0.0 <= self.min_improvement < 1.0, "min_improvement must lie in [0, 1)"),
             (0.0 <= self.pref_weight <= 1.0, "pref_weight must lie in [0, 1]"),
@@ -126,7 +135,7 @@ class RewardPlayer:
         # gradient dies at the bound); the supremum loss needs a bound inside the loss, so it uses the
         # smooth tanh bound, and the policy sees that same bounded reward.
         self.bound: Bound = "clip" if loss == "regression" else "tanh"
-        self.net = RewardNet(config.hidden_sizes, None if columns is None else tuple(columns))
+        self.net = RewardNet(config.hidden_sizes, None if columns is None else tuple(columns), config.spectral_norm)
         self.tx = optax.chain(optax.add_decayed_weights(config.weight_decay), optax.adam(config.lr))
         self._update = jax.jit(self._update_many, donate_argnums=(0,))
         self._eval = jax.jit(self._loss_value)

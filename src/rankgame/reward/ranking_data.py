@@ -6,6 +6,10 @@ uniformly drawn expert trajectory ``j``, at a uniformly drawn grid point ``p``; 
 target is ``k_p``. Sampling ``p`` uniformly weights every behavior in the ranking chain equally,
 as in SL_k (Eq. 8). The vanilla ranking is the grid ``{0, 1}``: agent vs expert.
 
+With ``time_aligned=False`` the expert state is drawn from a uniformly random time step instead:
+the *state-based* mixup that the paper compares against its trajectory mixup (App. D, effect of
+the regularizer).
+
 Mixtures are formed when sampled, so memory grows with the agent data only, not with the grid.
 A random (shuffled) ``holdout_fraction`` of rows, drawn as rows arrive, is kept for early stopping.
 """
@@ -27,6 +31,8 @@ class RankingData:
         holdout_fraction: share of agent rows kept out of training.
         flag_index: column of the absorbing flag in the inputs, to count real (non-padding) states;
             ``None`` counts every row as real.
+        time_aligned: mix agent step ``t`` with expert step ``t`` (trajectory mixup, the paper's auto
+            rankings) or with an expert step drawn uniformly from ``[0, H)`` (state mixup).
     """
 
     def __init__(
@@ -36,6 +42,7 @@ class RankingData:
         targets: np.ndarray,
         holdout_fraction: float,
         flag_index: int | None = None,
+        time_aligned: bool = True,
     ) -> None:
         if expert.ndim != 3 or len(expert) == 0:
             raise ValueError(f"expert inputs must have shape (M, H, d) with M >= 1, got {expert.shape}")
@@ -50,10 +57,12 @@ class RankingData:
         self.targets = targets.astype(np.float32)
         self.holdout_fraction = holdout_fraction
         self.flag_index = flag_index
+        self.time_aligned = time_aligned
         self.horizon, self.dim = expert.shape[1], expert.shape[2]
         self.agent = np.zeros((0, self.horizon, self.dim), np.float32)
         self.train_rows = np.zeros((0, 2), np.int64)
-        self.holdout_rows = np.zeros((0, 3), np.int64)  # (i, t, expert j), fixed for a stable holdout
+        # (i, t, expert j, expert step), fixed for a stable holdout
+        self.holdout_rows = np.zeros((0, 4), np.int64)
         self.n_real_states = 0  # agent states that are not absorbing padding
 
     @property
@@ -82,12 +91,19 @@ class RankingData:
         rows = np.stack([idx.ravel(), t.ravel()], axis=1)
         held = rng.uniform(size=len(rows)) < self.holdout_fraction
         experts = rng.integers(0, len(self.expert), size=int(held.sum()))
+        expert_steps = self._expert_steps(rng, rows[held, 1])
         self.train_rows = np.concatenate([self.train_rows, rows[~held]])
-        self.holdout_rows = np.concatenate([self.holdout_rows, np.column_stack([rows[held], experts])])
+        self.holdout_rows = np.concatenate([self.holdout_rows, np.column_stack([rows[held], experts, expert_steps])])
 
-    def _mix(self, agent_idx: np.ndarray, t: np.ndarray, expert_idx: np.ndarray, group: np.ndarray) -> np.ndarray:
+    def _expert_steps(self, rng: np.random.Generator, t: np.ndarray) -> np.ndarray:
+        """Expert time step mixed with agent step ``t`` (any shape): ``t`` itself, or a uniform draw."""
+        return t if self.time_aligned else rng.integers(0, self.horizon, size=t.shape)
+
+    def _mix(
+        self, agent_idx: np.ndarray, t: np.ndarray, expert_idx: np.ndarray, expert_t: np.ndarray, group: np.ndarray
+    ) -> np.ndarray:
         a = self.agent[agent_idx, t]
-        e = self.expert[expert_idx, t]
+        e = self.expert[expert_idx, expert_t]
         return a + self.lambdas[group][..., None] * (e - a)
 
     def sample(
@@ -100,7 +116,8 @@ class RankingData:
         rows = self.train_rows[rng.integers(0, len(self.train_rows), size=shape)]
         experts = rng.integers(0, len(self.expert), size=shape)
         group = rng.integers(0, len(self.lambdas), size=shape)
-        inputs = self._mix(rows[..., 0], rows[..., 1], experts, group)
+        expert_steps = self._expert_steps(rng, rows[..., 1])
+        inputs = self._mix(rows[..., 0], rows[..., 1], experts, expert_steps, group)
         return inputs, self.targets[group], (group == len(self.lambdas) - 1).astype(np.float32)
 
     def holdout(self, max_rows: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -115,12 +132,13 @@ class RankingData:
             held = held[np.linspace(0, len(held) - 1, max_rows).astype(np.int64)]
         rows = np.repeat(held, n_groups, axis=0)
         group = np.tile(np.arange(n_groups), len(held))
-        inputs = self._mix(rows[:, 0], rows[:, 1], rows[:, 2], group)
+        inputs = self._mix(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], group)
         return inputs, self.targets[group], (group == n_groups - 1).astype(np.float32)
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """The agent data as arrays for a checkpoint: ``ranking/agent (N, H, d)``, ``ranking/train_rows
-        (R, 2)`` of ``(i, t)``, ``ranking/holdout_rows (R_h, 3)`` of ``(i, t, j)`` and the real-state count."""
+        (R, 2)`` of ``(i, t)``, ``ranking/holdout_rows (R_h, 4)`` of ``(i, t, j, expert step)`` and the
+        real-state count."""
         return {
             "ranking/n_real_states": np.asarray(self.n_real_states),
             "ranking/agent": self.agent,
@@ -132,5 +150,8 @@ class RankingData:
         """Inverse of :meth:`state_dict` (the expert data, grid and targets come from the constructor)."""
         self.agent = state["ranking/agent"]
         self.train_rows = state["ranking/train_rows"]
-        self.holdout_rows = state["ranking/holdout_rows"]
+        held = state["ranking/holdout_rows"]
+        if held.shape[1] == 3:  # checkpoints before state mixup: the expert step is the agent's
+            held = np.column_stack([held, held[:, 1]])
+        self.holdout_rows = held
         self.n_real_states = int(state["ranking/n_real_states"])
