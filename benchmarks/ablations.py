@@ -171,19 +171,50 @@ def ablation_jobs(name: str, envs: list[str], seeds: list[int], root: Path, arch
     ]
 
 
-def summarize(jobs: list[tuple[Variant, Job]], at: list[int]) -> list[dict]:
-    """Mean and standard deviation over seeds of each variant's score at each step of ``at``."""
+def _mean_and_std(values: list[float]) -> tuple[float | None, float | None]:
+    if not values:
+        return None, None
+    return round(float(np.mean(values)), 1), round(float(np.std(values)), 1)
+
+
+def summarize(jobs: list[tuple[Variant, Job]], at: list[int], steps: int) -> list[dict]:
+    """One row per (env, variant): over seeds, the mean and standard deviation of the normalized score
+    at each step of ``at`` and of each run's mean over all its evaluations up to ``steps`` (the area
+    under its learning curve, steadier than any single evaluation; only runs that reached ``steps``)."""
     groups: dict[tuple[str, str], list[dict[int, float]]] = {}
     for variant, job in jobs:
         groups.setdefault((job.env, variant.label), []).append(read_scores(job.out, job.archived))
     rows = []
     for (env, label), runs in groups.items():
+        row: dict = {"env": env, "variant": label, "at": []}
         for step in at:
             scores = [run[step] for run in runs if step in run]
-            mean = round(float(np.mean(scores)), 1) if scores else None
-            std = round(float(np.std(scores)), 1) if scores else None
-            rows.append({"env": env, "variant": label, "step": step, "seeds": len(scores), "mean": mean, "std": std})
+            mean, std = _mean_and_std(scores)
+            row["at"].append({"step": step, "seeds": len(scores), "mean": mean, "std": std})
+        finished = [run for run in runs if steps in run]
+        curve_means = [float(np.mean([score for step, score in run.items() if step <= steps])) for run in finished]
+        row["curve_mean"], row["curve_std"] = _mean_and_std(curve_means)
+        row["curve_seeds"] = len(finished)
+        rows.append(row)
     return rows
+
+
+def markdown_table(rows: list[dict], at: list[int], steps: int) -> str:
+    """The summary as a Markdown table: one row per (env, variant), one column per step of ``at``."""
+
+    def cell(mean: float | None, std: float | None, seeds: int) -> str:
+        return "-" if mean is None else f"{mean} ± {std} ({seeds})"
+
+    header = " | ".join(f"{step // 1000}k" for step in at)
+    lines = [
+        f"| env | variant | {header} | mean of the evaluations to {steps // 1000}k |",
+        "| --- | --- | " + "--- | " * len(at) + "--- |",
+    ]
+    for row in rows:
+        points = " | ".join(cell(point["mean"], point["std"], point["seeds"]) for point in row["at"])
+        curve = cell(row["curve_mean"], row["curve_std"], row["curve_seeds"])
+        lines.append(f"| {row['env']} | {row['variant']} | {points} | {curve} |")
+    return "\n".join(lines)
 
 
 def main() -> None:
@@ -215,13 +246,10 @@ def main() -> None:
         return
     if not args.summarize_only:
         run_jobs([job for _, job in jobs], args.steps, args.cores)
-    rows = summarize(jobs, args.at)
-    print(json.dumps({"ablation": args.ablation, "at_steps": rows}))
-    print("\n| env | variant | steps | seeds | normalized score |")
-    print("| --- | --- | --- | --- | --- |")
-    for row in rows:
-        score = "-" if row["mean"] is None else f"{row['mean']} ± {row['std']}"
-        print(f"| {row['env']} | {row['variant']} | {row['step'] // 1000}k | {row['seeds']} | {score} |")
+    rows = summarize(jobs, args.at, args.steps)
+    print(json.dumps({"ablation": args.ablation, "steps": args.steps, "variants": rows}))
+    print("\nnormalized score, mean ± standard deviation (seeds)\n")
+    print(markdown_table(rows, args.at, args.steps))
 
 
 if __name__ == "__main__":

@@ -9,7 +9,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
-from ablations import ABLATIONS, ablation_jobs, summarize  # noqa: E402
+from ablations import ABLATIONS, ablation_jobs, markdown_table, summarize  # noqa: E402
 
 from rankgame.cli import train_config_from_argv  # noqa: E402
 
@@ -36,6 +36,16 @@ def test_summary_is_the_mean_and_deviation_over_seeds(tmp_path: Path) -> None:
             first, second = scores[variant.label, job.seed]
             rows = f"env_steps,normalized_score\n1000,{first}\n2000,{second}\n"
             (job.archived / "metrics.csv").write_text(rows)
-    rows = {(r["variant"], r["step"]): r for r in summarize(jobs, [2000])}
-    assert (rows["auto", 2000]["mean"], rows["auto", 2000]["std"], rows["auto", 2000]["seeds"]) == (40.0, 10.0, 2)
-    assert (rows["vanilla", 2000]["mean"], rows["vanilla", 2000]["seeds"]) == (7.0, 1)
+    rows = {row["variant"]: row for row in summarize(jobs, [1000, 2000], steps=2000)}
+    assert rows["auto"]["at"][1] == {"step": 2000, "seeds": 2, "mean": 40.0, "std": 10.0}
+    assert rows["vanilla"]["at"][0] == {"step": 1000, "seeds": 1, "mean": 5.0, "std": 0.0}
+    # Each run's mean over its evaluations: auto 20 and 35, so 27.5 ± 7.5; vanilla 6.
+    assert (rows["auto"]["curve_mean"], rows["auto"]["curve_std"], rows["auto"]["curve_seeds"]) == (27.5, 7.5, 2)
+    assert (rows["vanilla"]["curve_mean"], rows["vanilla"]["curve_seeds"]) == (6.0, 1)
+    # A run that has not reached --steps has no curve mean yet; evaluations past it are not counted.
+    early = {row["variant"]: row for row in summarize(jobs, [1000], steps=1000)}
+    assert early["auto"]["curve_mean"] == 15.0 and early["auto"]["curve_seeds"] == 2
+    assert summarize(jobs, [1000], steps=3000)[0]["curve_seeds"] == 0
+    table = markdown_table(list(rows.values()), [1000, 2000], 2000).splitlines()
+    assert table[0] == "| env | variant | 1k | 2k | mean of the evaluations to 2k |"
+    assert table[2] == "| Hopper-v5 | auto | 15.0 ± 5.0 (2) | 40.0 ± 10.0 (2) | 27.5 ± 7.5 (2) |"
