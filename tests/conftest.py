@@ -63,6 +63,21 @@ def toy_preference_file(tmp_path_factory: pytest.TempPathFactory):
     return save_trajectories(tmp_path_factory.mktemp("toy") / "prefs.npz", POINT_GOAL_ID, episodes)
 
 
+@pytest.fixture(scope="session")
+def toy_mirrored_expert_file(tmp_path_factory: pytest.TempPathFactory):
+    """Ten episodes of the analytic expert on the mirrored toy task (goal at -0.5): a changed intent."""
+    from rankgame.data.trajectories import save_trajectories
+    from rankgame.envs.make import make_env
+    from rankgame.envs.rollout import episode_returns, random_policy, rollout
+    from rankgame.envs.toy import POINT_GOAL_MIRRORED_ID, point_goal_expert
+
+    env = make_env(POINT_GOAL_MIRRORED_ID)
+    random_return = float(episode_returns(env, random_policy(env, 0), 20, seed=0).mean())
+    path = tmp_path_factory.mktemp("toy") / "mirrored.npz"
+    episodes = rollout(env, point_goal_expert, 10, seed=0)
+    return save_trajectories(path, POINT_GOAL_MIRRORED_ID, episodes, random_return_mean=random_return)
+
+
 #: Command-line options of a small, fast ranking game on the toy task.
 TOY_TRAIN_ARGS = (
     "--env",

@@ -111,6 +111,15 @@ class TrainConfig:
     method) or state (an expert state from a random time step, the regularizer ablation's baseline)."""
     policy_updates: int | None = None
     """Environment steps (and SAC updates) per game iteration, n_pol; default: the horizon H."""
+    switch_at: int | None = None
+    """Non-stationary imitation (Sec. 5.3): after this many environment steps, switch to --switch-env
+    and/or --switch-expert; default: never."""
+    switch_env: str | None = None
+    """Task to train and evaluate on after --switch-at, with the same spaces as ENV (e.g.
+    rankgame/HopperHeavy-v5: changed dynamics); default: ENV throughout."""
+    switch_expert: Path | None = None
+    """Expert data to imitate after --switch-at (e.g. an expert of rankgame/HopperBackward-v5: changed
+    intent); scores are then normalized by its returns. Default: the same expert throughout."""
     eval_every: int = 10_000
     """Environment steps between evaluations of the deterministic policy on the true reward."""
     eval_episodes: int = 5
@@ -162,6 +171,13 @@ class TrainConfig:
             raise RankGameError(f"--pref-noise must lie in [0, 1] (got {self.pref_noise})")
         if self.pref_noise > 0.0 and METHODS[self.method].rankings != "pref":
             raise RankGameError(f"--pref-noise is used only by the pref methods, not {self.method}")
+        switching = self.switch_env is not None or self.switch_expert is not None
+        if (self.switch_at is not None) != switching:
+            raise RankGameError("--switch-at needs --switch-env or --switch-expert, and they need --switch-at")
+        if self.switch_at is not None and not 0 < self.switch_at < self.steps:
+            raise RankGameError(f"--switch-at must lie between 0 and --steps {self.steps} (got {self.switch_at})")
+        if self.switch_expert is not None and METHODS[self.method].rankings == "pref":
+            raise RankGameError("--switch-expert cannot be combined with the pref methods' offline rankings")
         if self.setting == "lfo" and self.resolved_reward_input == "sa":
             raise RankGameError("--reward-input sa needs expert actions: use --setting lfd")
         if not np.isfinite([self.k, self.agent_target, self.beta]).all():
@@ -203,10 +219,12 @@ class _Episode:
         self.acts: list[np.ndarray] = []
 
 
-def load_expert(cfg: TrainConfig) -> TrajectoryFile:
-    """The expert data to imitate: ``--expert FILE`` or the shipped file of the task."""
-    path = cfg.expert if cfg.expert is not None else shipped_expert_path(cfg.env)
-    data = load_trajectories(path, env_id=cfg.env)
+def load_expert(cfg: TrainConfig, path: Path | None = None, env_id: str | None = None) -> TrajectoryFile:
+    """The expert data to imitate: ``path`` (recorded on ``env_id``), else ``--expert FILE`` or the
+    shipped file of the task."""
+    if path is None:
+        path = cfg.expert if cfg.expert is not None else shipped_expert_path(cfg.env)
+    data = load_trajectories(path, env_id=env_id or cfg.env)
     if len(data.trajectories) < cfg.expert_trajectories:
         raise RankGameError(
             f"{path} holds {len(data.trajectories)} trajectories; "
@@ -283,17 +301,61 @@ class RankingGame:
             flag_index=spec.obs_dim,
             time_aligned=cfg.mixup == "trajectory",
         )
-        self.expert_return = float(expert.returns.mean())
-        self.random_return = float(expert.metadata.get("random_return_mean", np.nan))
-        if not np.isfinite(self.random_return):  # expert file without it: measure on the evaluation env
-            policy = random_policy(self.eval_env, cfg.seed)
-            self.random_return = float(episode_returns(self.eval_env, policy, 20, cfg.seed).mean())
-        if self.expert_return == self.random_return:
-            print("expert and random returns are equal: the normalized score is not defined", file=sys.stderr)
+        self._set_score_scale(expert)
+        self.switch_expert = self._check_switch(spec)
         self.episode = _Episode()
         self.finished: list[np.ndarray] = []
         self.reward_metrics: dict[str, float] = {}
         self.sac_metrics: dict[str, float] = {}
+
+    def _set_score_scale(self, expert: TrajectoryFile) -> None:
+        """The expert and random returns that normalize scores, from the expert file's records."""
+        self.expert_return = float(expert.returns.mean())
+        self.random_return = float(expert.metadata.get("random_return_mean", np.nan))
+        if not np.isfinite(self.random_return):  # expert file without it: measure on the evaluation env
+            policy = random_policy(self.eval_env, self.cfg.seed)
+            self.random_return = float(episode_returns(self.eval_env, policy, 20, self.cfg.seed).mean())
+        if self.expert_return == self.random_return:
+            print("expert and random returns are equal: the normalized score is not defined", file=sys.stderr)
+
+    def _check_switch(self, spec: EnvSpec) -> TrajectoryFile | None:
+        """Check the ``--switch-env`` task and ``--switch-expert`` data before training starts; returns the
+        loaded switch expert data, if any."""
+        cfg = self.cfg
+        if cfg.switch_env is not None:
+            env = make_env(cfg.switch_env)
+            new = env_spec(env)
+            env.close()
+            shapes = [(s.obs_dim, s.act_dim, s.max_episode_steps) for s in (new, spec)]
+            if shapes[0] != shapes[1]:
+                raise RankGameError(
+                    f"--switch-env {cfg.switch_env} has (obs_dim, act_dim, horizon) = {shapes[0]}; "
+                    f"{cfg.env} has {shapes[1]}"
+                )
+        if cfg.switch_expert is None:
+            return None
+        expert = load_expert(cfg, cfg.switch_expert, cfg.switch_env or cfg.env)
+        _require_dims(expert, spec, "--switch-expert data")
+        self._inputs(expert.trajectories[: cfg.expert_trajectories], "--switch-expert data")  # alignable?
+        return expert
+
+    def switch(self) -> None:
+        """The non-stationary change at ``--switch-at`` (Sec. 5.3): the policy acts in and is evaluated on
+        ``--switch-env``, and the agent is ranked below ``--switch-expert``. The replay buffer, the
+        ranking data gathered so far and both players' parameters carry over; the episode in progress
+        is abandoned."""
+        cfg = self.cfg
+        assert cfg.switch_at is not None
+        if cfg.switch_env is not None:
+            self.eval_env.close()
+            self.eval_env = make_env(cfg.switch_env)
+            self.learner.switch_env(make_env(cfg.switch_env), seed=cfg.seed + cfg.switch_at)
+            self.env = self.learner.env
+            self.episode = _Episode()
+        if self.switch_expert is not None:
+            trajectories = self.switch_expert.trajectories[: cfg.expert_trajectories]
+            self.data.replace_expert(self._inputs(trajectories, "--switch-expert data"), self.rng)
+            self._set_score_scale(self.switch_expert)
 
     def _features(self, obs: np.ndarray, acts_norm: np.ndarray, terminated: bool) -> np.ndarray:
         return trajectory_features(obs, acts_norm, terminated, self.horizon, self.cfg.resolved_reward_input)
@@ -387,6 +449,8 @@ class RankingGame:
         metadata, arrays = load_run_checkpoint(
             path, config_to_json(self.cfg), config_to_json(TrainConfig()), self.cfg.steps
         )
+        if self.cfg.switch_at is not None and int(metadata["env_steps"]) > self.cfg.switch_at:
+            self.switch()
         self.learner.restore(metadata, arrays, seed=self.cfg.seed + int(metadata["env_steps"]))
         self.reward_state = unflatten_tree("reward", arrays, self.reward_state)
         self.data.load_state_dict(arrays)
@@ -425,6 +489,8 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
     spec = game.learner.spec
     try:
         for step in range(start_step + 1, cfg.steps + 1):
+            if cfg.switch_at is not None and step == cfg.switch_at + 1:  # evaluations at <= switch_at: before
+                game.switch()
             game.env_step()
             if step % game.n_pol == 0:
                 game.reward_turn()

@@ -121,6 +121,20 @@ class SACLearner:
         self._obs, _ = self.env.reset(seed=seed)
         self._episode_return = 0.0
 
+    def switch_env(self, env: gym.Env, seed: int) -> None:
+        """Act in ``env`` from now on (a task with the same spaces whose dynamics or reward changed);
+        the episode in progress is abandoned and a new one starts from ``seed``. The replay buffer is kept."""
+        spec = env_spec(env)
+        if (spec.obs_dim, spec.act_dim) != (self.spec.obs_dim, self.spec.act_dim):
+            raise ValueError(
+                f"{spec.env_id} has obs_dim={spec.obs_dim}, act_dim={spec.act_dim}; "
+                f"{self.spec.env_id} has obs_dim={self.spec.obs_dim}, act_dim={self.spec.act_dim}"
+            )
+        self.env.close()
+        self.env, self.spec = env, spec
+        self._obs, _ = env.reset(seed=seed)
+        self._episode_return = 0.0
+
     def _policy_obs(self, obs: np.ndarray) -> np.ndarray:
         return flag_obs(np.asarray(obs, np.float32)) if self.absorbing else obs
 

@@ -95,6 +95,14 @@ class RankingData:
         self.train_rows = np.concatenate([self.train_rows, rows[~held]])
         self.holdout_rows = np.concatenate([self.holdout_rows, np.column_stack([rows[held], experts, expert_steps])])
 
+    def replace_expert(self, expert: np.ndarray, rng: np.random.Generator) -> None:
+        """Rank the agent below other expert trajectories ``(M', H, d)`` from now on (a changed intent);
+        the holdout rows are paired with the new experts."""
+        if expert.ndim != 3 or len(expert) == 0 or expert.shape[1:] != self.expert.shape[1:]:
+            raise ValueError(f"new expert inputs have shape {expert.shape}, expected (M, {self.horizon}, {self.dim})")
+        self.expert = expert.astype(np.float32)
+        self.holdout_rows[:, 2] = rng.integers(0, len(expert), size=len(self.holdout_rows))
+
     def _expert_steps(self, rng: np.random.Generator, t: np.ndarray) -> np.ndarray:
         """Expert time step mixed with agent step ``t`` (any shape): ``t`` itself, or a uniform draw."""
         return t if self.time_aligned else rng.integers(0, self.horizon, size=t.shape)
