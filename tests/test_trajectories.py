@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -133,3 +134,16 @@ def test_every_shipped_expert_file_loads_with_its_provenance() -> None:
         assert np.isfinite(meta["random_return_mean"])
         assert data.returns.mean() > meta["random_return_mean"]
         assert meta["versions"]["gymnasium"] and meta["versions"]["mujoco"]
+
+
+def test_namespaced_ids_name_their_shipped_files_with_a_double_underscore(tmp_path: Path) -> None:
+    from rankgame.data import shipped_ids, shipped_path
+
+    for name in ("rankgame__HopperBackward-v5.npz", "Hopper-v5.npz"):
+        (tmp_path / name).write_bytes(b"")
+    assert shipped_ids(tmp_path) == ["Hopper-v5", "rankgame/HopperBackward-v5"]
+    path = shipped_path(tmp_path, "rankgame/HopperBackward-v5", "data", "make some")
+    assert path == tmp_path / "rankgame__HopperBackward-v5.npz"
+    message = "no shipped data for 'rankgame/Other-v0' (available: Hopper-v5, rankgame/HopperBackward-v5); make some"
+    with pytest.raises(RankGameError, match=re.escape(message)):
+        shipped_path(tmp_path, "rankgame/Other-v0", "data", "make some")

@@ -1,4 +1,8 @@
-"""Data shipped with rankgame: one ``<env_id>.npz`` trajectory file per task in a package folder."""
+"""Data shipped with rankgame: one ``<env_id>.npz`` trajectory file per task in a package folder.
+
+A namespaced id names its file with ``__`` for the ``/``: ``rankgame/HopperBackward-v5`` is
+``rankgame__HopperBackward-v5.npz``.
+"""
 
 from __future__ import annotations
 
@@ -9,13 +13,13 @@ from rankgame.errors import RankGameError
 
 def shipped_ids(folder: Path) -> list[str]:
     """Environment ids with a file in ``folder``, sorted."""
-    return sorted(path.stem for path in folder.glob("*.npz"))
+    return sorted(path.stem.replace("__", "/") for path in folder.glob("*.npz"))
 
 
 def shipped_path(folder: Path, env_id: str, what: str, instead: str) -> Path:
     """``folder/<env_id>.npz``, or a :class:`RankGameError` naming the ids that have ``what`` and what to do
     ``instead``."""
-    path = folder / f"{env_id}.npz"
+    path = folder / f"{env_id.replace('/', '__')}.npz"
     if not path.is_file():
         available = ", ".join(shipped_ids(folder)) or "none"
         raise RankGameError(f"no shipped {what} for {env_id!r} (available: {available}); {instead}")

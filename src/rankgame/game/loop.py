@@ -33,7 +33,7 @@ from rankgame.checkpoint import (
     unflatten_tree,
 )
 from rankgame.cli_args import config_to_json
-from rankgame.data.experts import normalized_score, shipped_expert_path
+from rankgame.data.experts import normalized_score, shipped_envs, shipped_expert_path
 from rankgame.data.preferences import load_preferences, shipped_preferences_path
 from rankgame.data.trajectories import Trajectory, TrajectoryFile, load_trajectories
 from rankgame.envs.make import EnvSpec, env_spec, make_env
@@ -119,7 +119,8 @@ class TrainConfig:
     rankgame/HopperHeavy-v5: changed dynamics); default: ENV throughout."""
     switch_expert: Path | None = None
     """Expert data to imitate after --switch-at (e.g. an expert of rankgame/HopperBackward-v5: changed
-    intent); scores are then normalized by its returns. Default: the same expert throughout."""
+    intent); scores are then normalized by its returns. Default: the shipped data of --switch-env if
+    there is any, else the same expert throughout."""
     eval_every: int = 10_000
     """Environment steps between evaluations of the deterministic policy on the true reward."""
     eval_episodes: int = 5
@@ -332,9 +333,12 @@ class RankingGame:
                     f"--switch-env {cfg.switch_env} has (obs_dim, act_dim, horizon) = {shapes[0]}; "
                     f"{cfg.env} has {shapes[1]}"
                 )
-        if cfg.switch_expert is None:
+        path = cfg.switch_expert
+        if path is None and cfg.switch_env in shipped_envs():
+            path = shipped_expert_path(cfg.switch_env)
+        if path is None:
             return None
-        expert = load_expert(cfg, cfg.switch_expert, cfg.switch_env or cfg.env)
+        expert = load_expert(cfg, path, cfg.switch_env or cfg.env)
         _require_dims(expert, spec, "--switch-expert data")
         self._inputs(expert.trajectories[: cfg.expert_trajectories], "--switch-expert data")  # alignable?
         return expert
