@@ -119,3 +119,11 @@ def test_bad_switch_settings_give_one_line_errors(
     )
     wrong_task = [*base, "--switch-at", "400", "--switch-expert", str(toy_mirrored_expert_file)]
     assert_one_line_error(run_cli(*wrong_task), "recorded on rankgame/PointGoalMirrored-v0, not rankgame/PointGoal-v0")
+
+
+def test_a_switch_to_the_backward_hopper_imitates_its_shipped_expert() -> None:
+    backward = RankingGame(TrainConfig(steps=2000, switch_at=1000, switch_env=HOPPER_BACKWARD_ID))
+    assert backward.switch_expert is not None and backward.switch_expert.env_id == HOPPER_BACKWARD_ID
+    assert backward.switch_expert.returns.mean() > 1500  # it hops backward
+    heavy = RankingGame(TrainConfig(steps=2000, switch_at=1000, switch_env=HOPPER_HEAVY_ID))
+    assert heavy.switch_expert is None  # no shipped data: the Hopper-v5 expert throughout

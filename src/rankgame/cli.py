@@ -224,11 +224,12 @@ def _cmd_experts(argv: Sequence[str]) -> int:
     if args.json:
         print(json.dumps(rows, indent=2))
         return 0
-    header = f"{'env':<16}{'trajs':>6}{'length':>8}{'return':>12}{'std':>9}{'random':>10}"
+    width = max([16, *(len(row["env"]) + 2 for row in rows)])
+    header = f"{'env':<{width}}{'trajs':>6}{'length':>8}{'return':>12}{'std':>9}{'random':>10}"
     print(header)
     for row in rows:
         print(
-            f"{row['env']:<16}{row['trajectories']:>6}{row['mean_length']:>8.0f}"
+            f"{row['env']:<{width}}{row['trajectories']:>6}{row['mean_length']:>8.0f}"
             f"{row['return_mean']:>12.1f}{row['return_std']:>9.1f}{row['random_return']:>10.1f}"
         )
     return 0
