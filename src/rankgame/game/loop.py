@@ -303,7 +303,7 @@ class RankingGame:
             time_aligned=cfg.mixup == "trajectory",
         )
         self._set_score_scale(expert)
-        self.switch_expert = self._check_switch(spec)
+        self.switch_expert, self._switch_inputs = self._check_switch(spec)
         self.episode = _Episode()
         self.finished: list[np.ndarray] = []
         self.reward_metrics: dict[str, float] = {}
@@ -319,9 +319,9 @@ class RankingGame:
         if self.expert_return == self.random_return:
             print("expert and random returns are equal: the normalized score is not defined", file=sys.stderr)
 
-    def _check_switch(self, spec: EnvSpec) -> TrajectoryFile | None:
+    def _check_switch(self, spec: EnvSpec) -> tuple[TrajectoryFile | None, np.ndarray | None]:
         """Check the ``--switch-env`` task and ``--switch-expert`` data before training starts; returns the
-        loaded switch expert data, if any."""
+        switch expert data and its reward inputs ``(M, H, d)``, if there is any."""
         cfg = self.cfg
         if cfg.switch_env is not None:
             env = make_env(cfg.switch_env)
@@ -337,11 +337,10 @@ class RankingGame:
         if path is None and cfg.switch_env in shipped_envs():
             path = shipped_expert_path(cfg.switch_env)
         if path is None:
-            return None
+            return None, None
         expert = load_expert(cfg, path, cfg.switch_env or cfg.env)
         _require_dims(expert, spec, "--switch-expert data")
-        self._inputs(expert.trajectories[: cfg.expert_trajectories], "--switch-expert data")  # alignable?
-        return expert
+        return expert, self._inputs(expert.trajectories[: cfg.expert_trajectories], "--switch-expert data")
 
     def switch(self) -> None:
         """The non-stationary change at ``--switch-at`` (Sec. 5.3): the policy acts in and is evaluated on
@@ -356,9 +355,8 @@ class RankingGame:
             self.learner.switch_env(make_env(cfg.switch_env), seed=cfg.seed + cfg.switch_at)
             self.env = self.learner.env
             self.episode = _Episode()
-        if self.switch_expert is not None:
-            trajectories = self.switch_expert.trajectories[: cfg.expert_trajectories]
-            self.data.replace_expert(self._inputs(trajectories, "--switch-expert data"), self.rng)
+        if self.switch_expert is not None and self._switch_inputs is not None:
+            self.data.replace_expert(self._switch_inputs, self.rng)
             self._set_score_scale(self.switch_expert)
 
     def _features(self, obs: np.ndarray, acts_norm: np.ndarray, terminated: bool) -> np.ndarray:
