@@ -11,7 +11,7 @@ seeds of the normalized score at each ``--at`` step, as JSON and as a Markdown t
     python benchmarks/ablations.py reward-range --envs Hopper-v5 --steps 100000 --at 50000 100000 --dry-run
     XLA_FLAGS="--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1" \\
         python benchmarks/ablations.py rankings --envs Hopper-v5 --seeds 0 1 2 --steps 100000 --cores 0 1
-    python benchmarks/ablations.py rankings --envs Hopper-v5 --steps 100000 --summarize-only
+    python benchmarks/ablations.py rankings --envs Hopper-v5 --steps 100000 --summarize-only --plot rankings.png
 
 Not covered: the Pen and Door tasks (the paper's preference-noise ablation uses Door).
 """
@@ -217,6 +217,28 @@ def markdown_table(rows: list[dict], at: list[int], steps: int) -> str:
     return "\n".join(lines)
 
 
+def plot_ablation(name: str, jobs: list[tuple[Variant, Job]], steps: int, out: Path) -> list[Path]:
+    """Draw, per env, one curve per variant (mean over its seeds, band of one standard deviation) up to
+    ``steps`` into ``out`` (``out`` with ``-ENV`` before its suffix when there are several envs).
+    Each run is read from its folder, else from its archive, like the summary."""
+    from rankgame.plot import plot_groups
+
+    envs = list(dict.fromkeys(job.env for _, job in jobs))
+    figures = []
+    for env in envs:
+        groups: dict[str, list[Path]] = {}
+        for variant, job in jobs:
+            folder = job.out if (job.out / "metrics.csv").exists() else job.archived
+            if job.env == env and (folder / "metrics.csv").exists():
+                groups.setdefault(variant.label, []).append(folder)
+        if not groups:
+            continue
+        figure = out if len(envs) == 1 else out.with_name(f"{out.stem}-{env.replace('/', '__')}{out.suffix}")
+        title = f"{env}: {name} ({ABLATIONS[name].section})"
+        figures.append(plot_groups(list(groups.items()), figure, title=title, max_steps=steps))
+    return figures
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("ablation", nargs="?", choices=list(ABLATIONS), help="which ablation to run or summarize")
@@ -230,6 +252,7 @@ def main() -> None:
     parser.add_argument("--cores", nargs="+", default=["0", "1"], help="CPU cores to pin one run each to")
     parser.add_argument("--dry-run", action="store_true", help="print the training commands without running them")
     parser.add_argument("--summarize-only", action="store_true")
+    parser.add_argument("--plot", type=Path, metavar="FILE", help="also draw the curves (plot extra)")
     args = parser.parse_args()
     if args.list:
         for name, ablation in ABLATIONS.items():
@@ -242,7 +265,8 @@ def main() -> None:
     jobs = ablation_jobs(args.ablation, args.envs, args.seeds, args.root, args.archive)
     if args.dry_run:
         for _, job in jobs:
-            print(shlex.join(["rankgame", *job.command(args.steps)[3:]]))
+            line = shlex.join(["rankgame", *job.command(args.steps)[3:]])
+            print(f"# archived, not run: {line}" if (job.archived / "metrics.csv").exists() else line)
         return
     if not args.summarize_only:
         run_jobs([job for _, job in jobs], args.steps, args.cores)
@@ -250,6 +274,9 @@ def main() -> None:
     print(json.dumps({"ablation": args.ablation, "steps": args.steps, "variants": rows}))
     print("\nnormalized score, mean ± standard deviation (seeds)\n")
     print(markdown_table(rows, args.at, args.steps))
+    if args.plot is not None:
+        for figure in plot_ablation(args.ablation, jobs, args.steps, args.plot):
+            print(f"wrote {figure}")
 
 
 if __name__ == "__main__":

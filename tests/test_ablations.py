@@ -9,7 +9,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
-from ablations import ABLATIONS, ablation_jobs, markdown_table, summarize  # noqa: E402
+from ablations import ABLATIONS, ablation_jobs, markdown_table, plot_ablation, summarize  # noqa: E402
 
 from rankgame.cli import train_config_from_argv  # noqa: E402
 
@@ -49,3 +49,29 @@ def test_summary_is_the_mean_and_deviation_over_seeds(tmp_path: Path) -> None:
     table = markdown_table(list(rows.values()), [1000, 2000], 2000).splitlines()
     assert table[0] == "| env | variant | 1k | 2k | mean of the evaluations to 2k |"
     assert table[2] == "| Hopper-v5 | auto | 15.0 ± 5.0 (2) | 40.0 ± 10.0 (2) | 27.5 ± 7.5 (2) |"
+
+
+def test_plot_draws_one_curve_per_variant_with_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    pytest.importorskip("matplotlib")
+    import rankgame.plot
+
+    drawn = {}
+
+    def fake_plot_groups(groups, out, **kwargs):  # noqa: ANN001, ANN003, ANN202
+        drawn[out] = (groups, kwargs)
+        return out
+
+    monkeypatch.setattr(rankgame.plot, "plot_groups", fake_plot_groups)
+    jobs = ablation_jobs("rankings", ["Hopper-v5", "Ant-v5"], [0, 1], tmp_path / "runs", tmp_path / "archive")
+    for variant, job in jobs:
+        if job.env == "Hopper-v5" and (variant.label, job.seed) != ("vanilla", 1):
+            folder = job.out if job.seed == 0 else job.archived  # a live run and an archived one
+            folder.mkdir(parents=True)
+            (folder / "metrics.csv").write_text("env_steps,normalized_score\n1000,1.0\n")
+    figures = plot_ablation("rankings", jobs, 1000, tmp_path / "rankings.png")
+    assert figures == [tmp_path / "rankings-Hopper-v5.png"]  # Ant-v5 has no run: no figure
+    groups, kwargs = drawn[figures[0]]
+    assert [label for label, _ in groups] == ["auto", "vanilla"]
+    where = [[run.relative_to(tmp_path).parts[0] for run in runs] for _, runs in groups]
+    assert where == [["runs", "archive"], ["runs"]]
+    assert kwargs["max_steps"] == 1000

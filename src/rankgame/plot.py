@@ -75,24 +75,38 @@ def plot_runs(
     ``labels``, if given, names the curves in order: one per run, or one per group of seeds.
     ``max_steps``, if given, ends every curve there (to compare runs of different lengths).
     """
-    if max_steps is not None and max_steps <= 0:
-        raise RankGameError(f"--max-steps must be positive (got {max_steps})")
     groups = list(group_by_seed(runs).items()) if seeds else [(Path(run).name, [Path(run)]) for run in runs]
     if labels is not None and len(labels) != len(groups):
         unit = "group of seeds" if seeds else "run"
         count = f"{len(groups)} curve{'s' if len(groups) != 1 else ''}"
         raise RankGameError(f"got {len(labels)} labels for {count} (one label per {unit})")
+    if labels is not None:
+        groups = [(label, group) for label, (_, group) in zip(labels, groups, strict=True)]
+    return plot_groups(groups, out, column, seeds, title, max_steps)
+
+
+def plot_groups(
+    groups: Sequence[tuple[str, Sequence[Path]]],
+    out: Path,
+    column: str = "normalized_score",
+    seeds: bool = True,
+    title: str | None = None,
+    max_steps: int | None = None,
+) -> Path:
+    """Draw one curve per ``(label, run folders)`` group into ``out``: with ``seeds`` the mean over the
+    group's runs with a band of one standard deviation, else the group's single run."""
+    if max_steps is not None and max_steps <= 0:
+        raise RankGameError(f"--max-steps must be positive (got {max_steps})")
     # Read every curve before drawing, so that a bad run fails before a figure is made.
     curves = []
-    for index, (name, group) in enumerate(groups):
-        label = labels[index] if labels is not None else name
+    for label, group in groups:
         if seeds:
-            steps, mean, std = mean_curve([read_curve(run, column, max_steps) for run in group])
+            steps, mean, std = mean_curve([read_curve(Path(run), column, max_steps) for run in group])
             if len(steps) == 0:
-                raise RankGameError(f"the runs of {name} share no logged step")
+                raise RankGameError(f"the runs of {label} share no logged step")
             curves.append((f"{label} ({len(group)} seed{'s' if len(group) > 1 else ''})", steps, mean, std))
         else:
-            steps, values = read_curve(group[0], column, max_steps)
+            steps, values = read_curve(Path(group[0]), column, max_steps)
             curves.append((label, steps, values, None))
     try:
         import matplotlib
