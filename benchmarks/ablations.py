@@ -86,14 +86,16 @@ ABLATIONS: dict[str, Ablation] = {
     "reward-budget": Ablation(
         "App. D, Stackelberg game design",
         "Stackelberg design: how long the reward trains per iteration, until its holdout stops improving"
-        " or n_rew = passes |D| / batch steps, for each leader",
+        " or n_rew = passes |D| / batch steps, for each leader; -all-rows: budgets count the absorbing padding",
         (
             Variant("pal-holdout", "rank-pal-auto"),
+            Variant("pal-holdout-all-rows", "rank-pal-auto", "--reward.budget-rows all"),
             Variant("pal-passes-6", "rank-pal-auto", "--reward.budget passes --reward.ral-passes 6"),
             Variant("pal-passes-30", "rank-pal-auto", "--reward.budget passes --reward.ral-passes 30"),
             Variant("ral-passes-1", "rank-ral-auto"),
             Variant("ral-passes-6", "rank-ral-auto", "--reward.ral-passes 6"),
             Variant("ral-holdout", "rank-ral-auto", "--reward.budget holdout"),
+            Variant("ral-passes-1-all-rows", "rank-ral-auto", "--reward.budget-rows all"),
         ),
     ),
     "reward-range": Ablation(

@@ -290,6 +290,45 @@ def test_ral_budget_is_passes_over_the_real_agent_states(
     assert asked == [expected]
 
 
+@pytest.mark.parametrize(("budget_rows", "ral_steps", "pal_epoch"), [("real", 3, 6), ("all", 4, 8)])
+def test_budget_rows_decides_whether_absorbing_padding_counts(
+    monkeypatch: pytest.MonkeyPatch, budget_rows: str, ral_steps: int, pal_epoch: int
+) -> None:
+    # 3 trajectories x (400 real + 100 absorbing) rows, no holdout, batch 400, 2 mixtures per row.
+    # RAL, one pass: real ceil(1200 / 400) = 3 steps, all ceil(1500 / 400) = 4.
+    # PAL, one epoch (the only one without a holdout): real 1200 * 2 / 400 = 6, all 1500 * 2 / 400 -> 8.
+    from rankgame.game.leaders import fit_reward
+
+    traj = np.zeros((500, 2), np.float32)
+    traj[400:, 1] = 1.0
+    data = RankingData(np.zeros((1, 500, 2), np.float32), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.0, 1)
+    data.add([traj] * 3, np.random.default_rng(0))
+    player = RewardPlayer(2, "s", "regression", RewardConfig(batch_size=400, budget_rows=budget_rows))
+    asked: list[int] = []
+    monkeypatch.setattr(player, "fit_steps", lambda state, data, n, rng: (asked.append(n), (state, 0.0))[1])
+    for leader in ("ral", "pal"):
+        fit_reward(leader, player, player.init(jax.random.key(0)), data, np.random.default_rng(1))
+    assert asked == [ral_steps, pal_epoch]
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_early_stopping_needs_a_relative_improvement_whatever_the_sign_of_the_loss(
+    monkeypatch: pytest.MonkeyPatch, sign: float
+) -> None:
+    # The holdout loss improves by 0.1% per epoch, less than min_improvement (1%): fitting stops after
+    # `patience` epochs whether the loss is positive (regression) or negative (the supremum loss).
+    data = RankingData(np.zeros((1, 50, 2), np.float32), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.2)
+    data.add([np.ones((50, 2), np.float32)] * 2, np.random.default_rng(0))
+    cfg = RewardConfig(batch_size=16, patience=2, max_epochs=20, min_improvement=0.01)
+    player = RewardPlayer(2, "s", "regression", cfg)
+    losses = iter(sign * 10.0 * (1.0 - 0.001 * sign * i) for i in range(100))
+    monkeypatch.setattr(player, "_eval", lambda *args: next(losses))
+    monkeypatch.setattr(player, "fit_steps", lambda state, data, n, rng: (state, 0.0))
+    _, metrics = player.fit_until_converged(player.init(jax.random.key(0)), data, np.random.default_rng(1))
+    assert metrics["reward/epochs"] == 2.0
+    assert metrics["reward/holdout_loss"] == pytest.approx(sign * 10.0 * (1.0 - 0.002 * sign))
+
+
 @pytest.mark.parametrize(
     ("leader", "budget", "expected"),
     [

@@ -4,9 +4,10 @@
   only, judged by a shuffled holdout (Alg. 2).
 * RAL (reward as leader): the reward is fit on *all* agent data so far, with ``n_rew = |D| / batch``
   gradient steps per iteration (Alg. 3, Table 4), times ``RewardConfig.ral_passes`` and rounded up to
-  whole fused chunks (``RewardConfig.chunk``, 8 steps). ``|D|`` counts the real agent states collected
-  so far, not the absorbing states that pad short episodes: padding would multiply the budget of an
-  early phase full of short episodes by up to H / (episode length) without adding information. Each
+  whole fused chunks (``RewardConfig.chunk``, 8 steps). By default ``|D|`` counts the real agent states
+  collected so far, not the absorbing states that pad short episodes: padding multiplies the budget of
+  an early phase full of short episodes by up to H / (episode length) (``RewardConfig.budget_rows =
+  "all"`` counts it, as the authors' code does). Each
   gradient step draws one mixture per sampled state, so with the default grid one pass covers a sixth
   of the mixtures. RAL holds out the same shuffled share of agent rows (time steps) as PAL
   (``holdout_fraction``), only to log a holdout loss; it trains on the rest.
@@ -43,7 +44,8 @@ def fit_reward(
     budget = cfg.budget if cfg.budget != "leader" else ("holdout" if leader == "pal" else "passes")
     if budget == "holdout":
         return player.fit_until_converged(state, data, rng)
-    n_updates = max(1, math.ceil(cfg.ral_passes * data.n_real_states / cfg.batch_size))
+    rows = data.n_real_states if cfg.budget_rows == "real" else len(data.train_rows)
+    n_updates = max(1, math.ceil(cfg.ral_passes * rows / cfg.batch_size))
     state, train_loss = player.fit_steps(state, data, n_updates, rng)
     return state, {
         "reward/train_loss": train_loss,

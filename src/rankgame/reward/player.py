@@ -64,8 +64,13 @@ class RewardConfig:
     leader, holdout for PAL and passes for RAL (Table 4; the other pairings are App. D's ablation)."""
     ral_passes: float = 1.0
     """Passes over the agent data per iteration with the passes budget (RAL's, by default): n_rew =
-    ral_passes |D| / batch_size gradient steps, |D| = the real agent states the reward trains on (each
-    step draws one mixture per sampled state)."""
+    ral_passes |D| / batch_size gradient steps, |D| = the agent rows counted by ``budget_rows`` (each
+    step draws one mixture per sampled row)."""
+    budget_rows: Literal["real", "all"] = "real"
+    """Which agent rows size both budgets (a holdout epoch, and |D| of the passes budget): ``real``
+    counts the real agent states only (at least H per holdout epoch), ``all`` also the absorbing rows
+    that pad early-terminated trajectories to H, as the authors' code does. Batches are drawn from all
+    rows either way, so with many short episodes ``all`` trains up to H / (episode length) times more."""
     pref_weight: float = 0.3
     """Weight of the offline rankings' loss in the (pref) methods, ``1 - alpha`` in Eq. 6 (the paper's
     Table 4: offline rankings loss weight 0.3); the agent-vs-expert ranking gets the rest."""
@@ -89,6 +94,7 @@ class RewardConfig:
             (self.patience > 0 and self.max_epochs > 0, "patience and max_epochs must be positive"),
             (self.budget in ("leader", "holdout", "passes"), "budget must be leader, holdout or passes"),
             (self.ral_passes > 0, "ral_passes must be positive"),
+            (self.budget_rows in ("real", "all"), "budget_rows must be real or all"),
             (0.0 <= self.min_improvement < 1.0, "min_improvement must lie in [0, 1)"),
             (0.0 <= self.pref_weight <= 1.0, "pref_weight must lie in [0, 1]"),
             (self.snippet_length > 0, "snippet_length must be positive"),
@@ -250,13 +256,16 @@ class RewardPlayer:
     ) -> tuple[RewardState, dict[str, float]]:
         """Fit epoch by epoch until the holdout loss stops improving; keep the best parameters.
 
-        One epoch is as many gradient steps as it takes to draw every mixture of ``max(real agent
-        states, H)`` rows once on average. Absorbing padding is not counted: all its rows are the same
-        state, so an early phase of many short episodes would otherwise make epochs (and the time
-        between convergence checks) dozens of times longer without adding information.
+        One epoch is as many gradient steps as ``budget_rows`` training rows have mixtures, at one
+        mixture per sampled row. By default (``real``) that is ``max(real agent states, H)`` rows: the
+        absorbing padding is not counted, as all its rows are the same state, and an early phase of many
+        short episodes would otherwise make epochs (and the time between convergence checks) dozens of
+        times longer. ``all`` counts every row, the authors' epoch.
         """
         cfg = self.config
-        rows = min(len(data.train_rows), max(data.n_real_states, data.horizon))
+        rows = len(data.train_rows)
+        if cfg.budget_rows == "real":
+            rows = min(rows, max(data.n_real_states, data.horizon))
         per_epoch = max(1, math.ceil(rows * len(data.lambdas) / cfg.batch_size))
         holdout = self._holdout_batch(data)
         if holdout is None:  # no holdout: a single epoch
@@ -270,7 +279,8 @@ class RewardPlayer:
             epochs += 1
             loss = float(self._eval(state.params, *holdout))
             if loss < best_loss:
-                improved = loss < best_loss * (1.0 - cfg.min_improvement)
+                # Relative to |best|: the supremum loss is negative once the reward separates the data.
+                improved = best_loss - loss > cfg.min_improvement * abs(best_loss)
                 best_loss, best_params = loss, jax.tree.map(jnp.copy, state.params)
                 stale = 0 if improved else stale + 1
             else:
