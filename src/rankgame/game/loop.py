@@ -388,8 +388,10 @@ class RankingGame:
         ranked = self._inputs([data.trajectories[i] for i in order], "preference data")
         positions = np.arange(len(ranked) + 1) / len(ranked)
         targets = target_schedule(positions, cfg.agent_target, cfg.agent_target + cfg.k, cfg.schedule, cfg.beta)
-        try:
-            return OfflineRankings(ranked, expert_inputs, targets, cfg.reward.snippet_length, cfg.pref_noise, cfg.seed)
+        try:  # the label noise gets its own stream (SAC draws from `seed`, the ranking data from [seed, 1])
+            return OfflineRankings(
+                ranked, expert_inputs, targets, cfg.reward.snippet_length, cfg.pref_noise, noise_seed=[cfg.seed, 2]
+            )
         except ValueError as exc:
             raise RankGameError(f"bad preference setting: {exc}") from None
 

@@ -16,6 +16,8 @@ The expert's labels stay: it grounds the chain.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 
@@ -29,7 +31,7 @@ class OfflineRankings:
         targets: ``(p + 1,)`` non-decreasing regression targets, the expert's last.
         snippet_length: ``l``, steps per snippet (at most H).
         noise: share of offline labels given another trajectory's rank, in ``[0, 1]``.
-        noise_seed: seed of which labels are corrupted and how.
+        noise_seed: seed (or seed sequence) of which labels are corrupted and how.
     """
 
     def __init__(
@@ -39,7 +41,7 @@ class OfflineRankings:
         targets: np.ndarray,
         snippet_length: int,
         noise: float = 0.0,
-        noise_seed: int = 0,
+        noise_seed: int | Sequence[int] = 0,
     ) -> None:
         if ranked.ndim != 3 or len(ranked) < 1 or expert.ndim != 3 or ranked.shape[1:] != expert.shape[1:]:
             raise ValueError(
