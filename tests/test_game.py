@@ -215,6 +215,7 @@ def test_bad_training_input_gives_one_line_errors(toy_expert_file: Path, tmp_pat
     # Expert data of another environment:
     hopper = ["train", "--env", "Hopper-v5", "--expert", str(toy_expert_file), "--out", str(tmp_path / "h")]
     _one_line_error(hopper, "recorded on rankgame/PointGoal-v0, not Hopper-v5")
+    assert not (tmp_path / "h").exists()  # a run refused for its input leaves no folder behind
     # Expert data whose dimensions do not match the environment:
     data = load_trajectories(toy_expert_file)
     widened = [

@@ -178,9 +178,9 @@ def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any
     cfg.validate()
     out = Path(cfg.out)
     resume_from = checkpoint_to_resume(out, cfg.resume)
-    make_out_dir(out)
-    env = make_env(cfg.env)
+    env = make_env(cfg.env)  # an unknown or unavailable task fails before OUT is created
     eval_env = make_env(cfg.env)
+    make_out_dir(out)
     learner = SACLearner(env, cfg.sac, cfg.seed)
     progress = _restore(cfg, learner, resume_from) if resume_from is not None else _Progress()
     ckpt = out / CHECKPOINT_NAME

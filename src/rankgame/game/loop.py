@@ -468,8 +468,8 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
     cfg.validate()
     out = Path(cfg.out)
     ckpt = checkpoint_to_resume(out, cfg.resume)
+    game = RankingGame(cfg)  # bad tasks or data fail before OUT is created
     make_out_dir(out)
-    game = RankingGame(cfg)
     elapsed, eval_s = 0.0, 0.0  # wall-clock seconds of the whole run and of its evaluations
     if ckpt is not None:
         saved = game.restore(ckpt)
