@@ -153,8 +153,17 @@ ABLATIONS: dict[str, Ablation] = {
 }
 
 
-def ablation_jobs(name: str, envs: list[str], seeds: list[int], root: Path, archive: Path) -> list[tuple[Variant, Job]]:
-    """Every (variant, env, seed) run of an ablation, variant by variant."""
+def ablation_jobs(
+    name: str, envs: list[str], seeds: list[int], root: Path, archive: Path, labels: list[str] | None = None
+) -> list[tuple[Variant, Job]]:
+    """Every (variant, env, seed) run of an ablation, variant by variant (only the variants named in
+    ``labels`` if given; an unknown label raises ``ValueError``)."""
+    variants = ABLATIONS[name].variants
+    if labels is not None:
+        unknown = sorted(set(labels) - {variant.label for variant in variants})
+        if unknown:
+            raise ValueError(f"{name} has no variant {', '.join(unknown)} (see --list)")
+        variants = tuple(variant for variant in variants if variant.label in labels)
     return [
         (
             variant,
@@ -167,7 +176,7 @@ def ablation_jobs(name: str, envs: list[str], seeds: list[int], root: Path, arch
                 variant.train_args,
             ),
         )
-        for variant in ABLATIONS[name].variants
+        for variant in variants
         for env in envs
         for seed in seeds
     ]
@@ -247,6 +256,7 @@ def main() -> None:
     parser.add_argument("--list", action="store_true", help="list the ablations and their variants")
     parser.add_argument("--envs", nargs="+", default=["Hopper-v5"])
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    parser.add_argument("--variants", nargs="+", metavar="LABEL", help="only these variants (default: all)")
     parser.add_argument("--steps", type=int, default=300_000)
     parser.add_argument("--at", nargs="+", type=int, default=[100_000, 300_000])
     parser.add_argument("--root", type=Path, default=Path("runs/ablations"))
@@ -264,7 +274,10 @@ def main() -> None:
         return
     if args.ablation is None:
         parser.error("name an ablation (see --list)")
-    jobs = ablation_jobs(args.ablation, args.envs, args.seeds, args.root, args.archive)
+    try:
+        jobs = ablation_jobs(args.ablation, args.envs, args.seeds, args.root, args.archive, args.variants)
+    except ValueError as exc:
+        parser.error(str(exc))
     if args.dry_run:
         for _, job in jobs:
             line = shlex.join(["rankgame", *job.command(args.steps)[3:]])

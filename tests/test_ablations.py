@@ -75,3 +75,15 @@ def test_plot_draws_one_curve_per_variant_with_runs(tmp_path: Path, monkeypatch:
     where = [[run.relative_to(tmp_path).parts[0] for run in runs] for _, runs in groups]
     assert where == [["runs", "archive"], ["runs"]]
     assert kwargs["max_steps"] == 1000
+
+
+def test_variants_can_be_restricted_by_label(tmp_path: Path) -> None:
+    jobs = ablation_jobs("loss", ["Hopper-v5"], [0, 1], tmp_path, tmp_path, ["imit-ral", "rank-pal"])
+    assert [(variant.label, job.seed) for variant, job in jobs] == [
+        ("rank-pal", 0),
+        ("rank-pal", 1),
+        ("imit-ral", 0),
+        ("imit-ral", 1),
+    ]  # in the ablation's order
+    with pytest.raises(ValueError, match="loss has no variant imit-gail"):
+        ablation_jobs("loss", ["Hopper-v5"], [0], tmp_path, tmp_path, ["imit-gail", "rank-pal"])
