@@ -38,8 +38,8 @@ def test_paper_changes_nothing_and_tuned_changes_only_listed_pairs() -> None:
         "reward.weight_decay": 1e-2,
     }
     assert recipe_settings("tuned", "HalfCheetah-v5", "rank-ral-auto") == {}
-    assert recipe_settings("tuned", "Hopper-v5", "rank-ral-auto") == {}
-    assert recipe_settings("tuned", "Hopper-v5", "rank-pal-auto") == {"reward.patience": 1}
+    assert recipe_settings("tuned", "Hopper-v5", "rank-ral-auto") == {"k": 1.0, "reward.r_max": 1.0}
+    assert recipe_settings("tuned", "Walker2d-v5", "rank-pal-auto") == {"reward.patience": 1}
     with pytest.raises(ValueError, match="unknown recipe 'best'"):
         recipe_settings("best", "Ant-v5", "rank-pal-auto")
 
@@ -61,10 +61,12 @@ def test_the_cli_applies_the_recipe_to_the_defaults_and_explicit_options_win() -
     cfg, note = train_config_from_argv(["--recipe=tuned", "--env=Ant-v5", "--method", "rank-ral-auto"])
     assert cfg.reward_obs == "0:27" and cfg.reward.ral_passes == 6.0
     assert note is not None and note.endswith("--reward-obs 0:27, --reward.ral-passes 6.0")
-    cfg, note = train_config_from_argv(["--recipe", "tuned", "--method", "rank-ral-auto"])  # the paper's settings
-    assert cfg == TrainConfig(method="rank-ral-auto") and note is not None and note.endswith("the paper's apply")
+    keeps_paper = ["--recipe", "tuned", "--env", "HalfCheetah-v5", "--method", "rank-ral-auto"]
+    cfg, note = train_config_from_argv(keeps_paper)
+    assert cfg == TrainConfig(env="HalfCheetah-v5", method="rank-ral-auto")
+    assert note is not None and note.endswith("the paper's apply")
     cfg, note = train_config_from_argv(["--recipe", "tuned"])  # the default task and method: Hopper-v5, PAL
-    assert cfg.reward.patience == 1 and note is not None and note.endswith("--reward.patience 1")
+    assert cfg.k == 1.0 and cfg.reward.r_max == 1.0 and note is not None and note.endswith("--reward.r-max 1.0")
     cfg, note = train_config_from_argv(["--env", "Ant-v5"])
     assert cfg.reward_obs == "all" and note is None
     with pytest.raises(RankGameError, match="unknown recipe"):
