@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from sample_efficiency import Job, read_scores, run_jobs
+from sample_efficiency import Job, logged_folder, read_scores, run_jobs
 
 
 @dataclass(frozen=True)
@@ -239,8 +239,8 @@ def plot_ablation(name: str, jobs: list[tuple[Variant, Job]], steps: int, out: P
     for env in envs:
         groups: dict[str, list[Path]] = {}
         for variant, job in jobs:
-            folder = job.out if (job.out / "metrics.csv").exists() else job.archived
-            if job.env == env and (folder / "metrics.csv").exists():
+            folder = logged_folder(job.out, job.archived)
+            if job.env == env and folder is not None:
                 groups.setdefault(variant.label, []).append(folder)
         if not groups:
             continue

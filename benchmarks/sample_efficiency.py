@@ -138,14 +138,17 @@ def _wait_and_archive(proc: subprocess.Popen, out: Path, archived: Path) -> None
     archive_if_finished(out, archived)
 
 
+def logged_folder(out: Path, archived: Path) -> Path | None:
+    """Where a run's ``metrics.csv`` is read from: its run folder, else its archived copy; None if neither."""
+    return next((folder for folder in (out, archived) if (folder / "metrics.csv").exists()), None)
+
+
 def read_scores(out: Path, archived: Path) -> dict[int, float]:
     """Normalized score by evaluation step of a run (its folder, else its archived copy); empty if none."""
-    path = out / "metrics.csv"
-    if not path.exists():
-        path = archived / "metrics.csv"
-    if not path.exists():
+    folder = logged_folder(out, archived)
+    if folder is None:
         return {}
-    with path.open() as handle:
+    with (folder / "metrics.csv").open() as handle:
         return {int(row["env_steps"]): float(row["normalized_score"]) for row in csv.DictReader(handle)}
 
 
