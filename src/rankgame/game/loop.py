@@ -301,6 +301,7 @@ class RankingGame:
             cfg.reward.holdout_fraction,
             flag_index=spec.obs_dim,
             time_aligned=cfg.mixup == "trajectory",
+            holdout_real_only=cfg.reward.holdout_rows == "real",
         )
         self._set_score_scale(expert)
         self.switch_expert, self._switch_inputs = self._check_switch(spec)

@@ -71,6 +71,11 @@ class RewardConfig:
     counts the real agent states only (at least H per holdout epoch), ``all`` also the absorbing rows
     that pad early-terminated trajectories to H, as the authors' code does. Batches are drawn from all
     rows either way, so with many short episodes ``all`` trains up to H / (episode length) times more."""
+    holdout_rows: Literal["all", "real"] = "all"
+    """Which agent rows may be held out: ``all`` (the shuffled ``holdout_fraction`` of every row), or
+    ``real``, real agent states only. Absorbing rows repeat one state, and so does every row's
+    expert end of the chain, so with ``all`` early, short episodes fill the holdout with inputs the
+    reward also trains on."""
     pref_weight: float = 0.3
     """Weight of the offline rankings' loss in the (pref) methods, ``1 - alpha`` in Eq. 6 (the paper's
     Table 4: offline rankings loss weight 0.3); the agent-vs-expert ranking gets the rest."""
@@ -95,6 +100,7 @@ class RewardConfig:
             (self.budget in ("leader", "holdout", "passes"), "budget must be leader, holdout or passes"),
             (self.ral_passes > 0, "ral_passes must be positive"),
             (self.budget_rows in ("real", "all"), "budget_rows must be real or all"),
+            (self.holdout_rows in ("real", "all"), "holdout_rows must be real or all"),
             (0.0 <= self.min_improvement < 1.0, "min_improvement must lie in [0, 1)"),
             (0.0 <= self.pref_weight <= 1.0, "pref_weight must lie in [0, 1]"),
             (self.snippet_length > 0, "snippet_length must be positive"),

@@ -33,6 +33,8 @@ class RankingData:
             ``None`` counts every row as real.
         time_aligned: mix agent step ``t`` with expert step ``t`` (trajectory mixup, the paper's auto
             rankings) or with an expert step drawn uniformly from ``[0, H)`` (state mixup).
+        holdout_real_only: hold out real agent states only, never absorbing padding (which repeats
+            one state in every short trajectory, so a held-out copy is also a training input).
     """
 
     def __init__(
@@ -43,6 +45,7 @@ class RankingData:
         holdout_fraction: float,
         flag_index: int | None = None,
         time_aligned: bool = True,
+        holdout_real_only: bool = False,
     ) -> None:
         if expert.ndim != 3 or len(expert) == 0:
             raise ValueError(f"expert inputs must have shape (M, H, d) with M >= 1, got {expert.shape}")
@@ -58,6 +61,7 @@ class RankingData:
         self.holdout_fraction = holdout_fraction
         self.flag_index = flag_index
         self.time_aligned = time_aligned
+        self.holdout_real_only = holdout_real_only
         self.horizon, self.dim = expert.shape[1], expert.shape[2]
         self.agent = np.zeros((0, self.horizon, self.dim), np.float32)
         self.train_rows = np.zeros((0, 2), np.int64)
@@ -90,6 +94,8 @@ class RankingData:
         idx, t = np.meshgrid(np.arange(first, len(self.agent)), np.arange(self.horizon), indexing="ij")
         rows = np.stack([idx.ravel(), t.ravel()], axis=1)
         held = rng.uniform(size=len(rows)) < self.holdout_fraction
+        if self.holdout_real_only:
+            held &= real.ravel()
         experts = rng.integers(0, len(self.expert), size=int(held.sum()))
         expert_steps = self._expert_steps(rng, rows[held, 1])
         self.train_rows = np.concatenate([self.train_rows, rows[~held]])
