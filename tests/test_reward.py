@@ -181,6 +181,7 @@ def test_holdout_is_a_shuffled_share_of_rows() -> None:
     data.clear()
     assert data.n_trajectories == 0 and len(data.train_rows) == 0
 
+
 @pytest.mark.parametrize("real_only", [False, True])
 def test_holdout_of_real_states_only_leaves_the_padding_in_training(real_only: bool) -> None:
     # Inputs (x, flag): each trajectory is 10 real steps, then 90 absorbing rows (flag 1).
@@ -195,7 +196,6 @@ def test_holdout_of_real_states_only_leaves_the_padding_in_training(real_only: b
         assert held_steps.max() < 10 and 120 < len(held_steps) < 280  # half of the 400 real rows
     else:
         assert (held_steps >= 10).mean() > 0.8 and 1800 < len(held_steps) < 2200  # half of all rows
-
 
 
 def test_tabular_fit_approaches_the_closed_form() -> None:
