@@ -5,7 +5,9 @@ method and the options that differ from the paper's defaults. Runs go to ``--roo
 and, once finished, their ``metrics.csv`` and ``config.json`` are archived under
 ``--archive/ABLATION/VARIANT`` (runs already archived are not repeated), exactly as in
 ``sample_efficiency.py``, whose runner this uses. The summary is the mean and standard deviation over
-seeds of the normalized score at each ``--at`` step, as JSON and as a Markdown table.
+seeds of the normalized score at each ``--at`` step, as JSON and as a Markdown table, followed by a
+table of every run: the first evaluation at ``--threshold`` and the median, minimum and maximum of the
+evaluations in the second half of the run.
 
     python benchmarks/ablations.py --list
     python benchmarks/ablations.py reward-range --envs Hopper-v5 --steps 100000 --at 50000 100000 --dry-run
@@ -25,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from sample_efficiency import Job, logged_folder, read_scores, run_jobs
+from sample_efficiency import Job, first_step_text, logged_folder, read_scores, run_jobs, run_profile
 
 
 @dataclass(frozen=True)
@@ -188,15 +190,17 @@ def _mean_and_std(values: list[float]) -> tuple[float | None, float | None]:
     return round(float(np.mean(values)), 1), round(float(np.std(values)), 1)
 
 
-def summarize(jobs: list[tuple[Variant, Job]], at: list[int], steps: int) -> list[dict]:
+def summarize(jobs: list[tuple[Variant, Job]], at: list[int], steps: int, threshold: float = 80.0) -> list[dict]:
     """One row per (env, variant): over seeds, the mean and standard deviation of the normalized score
     at each step of ``at`` and of each run's mean over all its evaluations up to ``steps`` (the area
-    under its learning curve, steadier than any single evaluation; only runs that reached ``steps``)."""
-    groups: dict[tuple[str, str], list[dict[int, float]]] = {}
+    under its learning curve, steadier than any single evaluation; only runs that reached ``steps``),
+    and under ``runs`` the :func:`run_profile` of each run that reached ``steps``, with its seed."""
+    groups: dict[tuple[str, str], list[tuple[int, dict[int, float]]]] = {}
     for variant, job in jobs:
-        groups.setdefault((job.env, variant.label), []).append(read_scores(job.out, job.archived))
+        groups.setdefault((job.env, variant.label), []).append((job.seed, read_scores(job.out, job.archived)))
     rows = []
-    for (env, label), runs in groups.items():
+    for (env, label), seeded_runs in groups.items():
+        runs = [run for _, run in seeded_runs]
         row: dict = {"env": env, "variant": label, "at": []}
         for step in at:
             scores = [run[step] for run in runs if step in run]
@@ -206,6 +210,8 @@ def summarize(jobs: list[tuple[Variant, Job]], at: list[int], steps: int) -> lis
         curve_means = [float(np.mean([score for step, score in run.items() if step <= steps])) for run in finished]
         row["curve_mean"], row["curve_std"] = _mean_and_std(curve_means)
         row["curve_seeds"] = len(finished)
+        profiles = [(seed, run_profile(run, steps, threshold)) for seed, run in seeded_runs]
+        row["runs"] = [{"seed": seed, **profile} for seed, profile in profiles if profile is not None]
         rows.append(row)
     return rows
 
@@ -225,6 +231,21 @@ def markdown_table(rows: list[dict], at: list[int], steps: int) -> str:
         points = " | ".join(cell(point["mean"], point["std"], point["seeds"]) for point in row["at"])
         curve = cell(row["curve_mean"], row["curve_std"], row["curve_seeds"])
         lines.append(f"| {row['env']} | {row['variant']} | {points} | {curve} |")
+    return "\n".join(lines)
+
+
+def per_seed_table(rows: list[dict], steps: int, threshold: float = 80.0) -> str:
+    """The runs of each (env, variant) of :func:`summarize` as a Markdown table: per seed, in seed order,
+    the first step at ``threshold`` and the median / minimum / maximum over the second half of the run."""
+    lines = [
+        f"| env | variant | first step at >= {threshold:g}, per seed "
+        f"| median / min / max over {steps // 2000}k-{steps // 1000}k, per seed |",
+        "| --- | --- | --- | --- |",
+    ]
+    for row in rows:
+        firsts = ", ".join(first_step_text(run) for run in row["runs"])
+        spreads = ", ".join(f"{run['late_median']} / {run['late_min']} / {run['late_max']}" for run in row["runs"])
+        lines.append(f"| {row['env']} | {row['variant']} | {firsts or '-'} | {spreads or '-'} |")
     return "\n".join(lines)
 
 
@@ -259,6 +280,7 @@ def main() -> None:
     parser.add_argument("--variants", nargs="+", metavar="LABEL", help="only these variants (default: all)")
     parser.add_argument("--steps", type=int, default=300_000)
     parser.add_argument("--at", nargs="+", type=int, default=[100_000, 300_000])
+    parser.add_argument("--threshold", type=float, default=80.0, help="score whose first crossing is reported")
     parser.add_argument("--root", type=Path, default=Path("runs/ablations"))
     parser.add_argument("--archive", type=Path, default=Path("benchmarks/results/ablations"))
     parser.add_argument("--cores", nargs="+", default=["0", "1"], help="CPU cores to pin one run each to")
@@ -285,10 +307,12 @@ def main() -> None:
         return
     if not args.summarize_only:
         run_jobs([job for _, job in jobs], args.steps, args.cores)
-    rows = summarize(jobs, args.at, args.steps)
+    rows = summarize(jobs, args.at, args.steps, args.threshold)
     print(json.dumps({"ablation": args.ablation, "steps": args.steps, "variants": rows}))
     print("\nnormalized score, mean ± standard deviation (seeds)\n")
     print(markdown_table(rows, args.at, args.steps))
+    print()
+    print(per_seed_table(rows, args.steps, args.threshold))
     if args.plot is not None:
         for figure in plot_ablation(args.ablation, jobs, args.steps, args.plot):
             print(f"wrote {figure}")

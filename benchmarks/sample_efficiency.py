@@ -189,28 +189,36 @@ def summarize(args: argparse.Namespace, all_scores: RunScores) -> list[dict]:
     return table
 
 
+def run_profile(scores: dict[int, float], steps: int, threshold: float) -> dict | None:
+    """How a run reached and held the imitation: the first evaluation step whose score reaches
+    ``threshold`` (None if none), and the median, minimum and maximum of the evaluations in the second
+    half of the run (how steady it stays); read up to ``steps``. None for a run that has not reached ``steps``."""
+    if max(scores, default=0) < steps:
+        return None
+    within = {step: score for step, score in sorted(scores.items()) if step <= steps}
+    late = [score for step, score in within.items() if step >= steps // 2]
+    reached = [step for step, score in within.items() if score >= threshold]
+    return {
+        "first_step_at_threshold": reached[0] if reached else None,
+        "late_median": round(float(np.median(late)), 1),
+        "late_min": round(min(late), 1),
+        "late_max": round(max(late), 1),
+    }
+
+
+def first_step_text(profile: dict) -> str:
+    """A profile's first step at the threshold as table text: ``"90k"`` or ``"never"``."""
+    first = profile["first_step_at_threshold"]
+    return "never" if first is None else f"{first // 1000}k"
+
+
 def per_run(args: argparse.Namespace, all_scores: RunScores) -> list[dict]:
-    """For every finished run: the first step whose score reaches ``--threshold``, and the median, minimum
-    and maximum of the evaluations in the second half of the run (how steady the imitation stays); a run
-    longer than ``--steps`` is read up to ``--steps``."""
+    """:func:`run_profile` of every run that reached ``--steps``, with its env, method and seed."""
     rows = []
     for (env, method, seed), scores in all_scores.items():
-        if max(scores, default=0) < args.steps:
-            continue
-        within = {step: score for step, score in sorted(scores.items()) if step <= args.steps}
-        late = [score for step, score in within.items() if step >= args.steps // 2]
-        reached = [step for step, score in within.items() if score >= args.threshold]
-        rows.append(
-            {
-                "env": env,
-                "method": method,
-                "seed": seed,
-                "first_step_at_threshold": reached[0] if reached else None,
-                "late_median": round(float(np.median(late)), 1),
-                "late_min": round(min(late), 1),
-                "late_max": round(max(late), 1),
-            }
-        )
+        profile = run_profile(scores, args.steps, args.threshold)
+        if profile is not None:
+            rows.append({"env": env, "method": method, "seed": seed, **profile})
     return rows
 
 
@@ -250,9 +258,8 @@ def main() -> None:
     print(f"\n| env | method | seed | first step at >= {args.threshold:g} | median / min / max over {half} |")
     print("| --- | --- | --- | --- | --- |")
     for row in runs:
-        first = "never" if row["first_step_at_threshold"] is None else f"{row['first_step_at_threshold'] // 1000}k"
         spread = f"{row['late_median']} / {row['late_min']} / {row['late_max']}"
-        print(f"| {row['env']} | {row['method']} | {row['seed']} | {first} | {spread} |")
+        print(f"| {row['env']} | {row['method']} | {row['seed']} | {first_step_text(row)} | {spread} |")
 
 
 if __name__ == "__main__":

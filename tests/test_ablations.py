@@ -9,7 +9,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
-from ablations import ABLATIONS, ablation_jobs, markdown_table, plot_ablation, summarize  # noqa: E402
+from ablations import ABLATIONS, ablation_jobs, markdown_table, per_seed_table, plot_ablation, summarize  # noqa: E402
 
 from rankgame.cli import train_config_from_argv  # noqa: E402
 
@@ -87,3 +87,26 @@ def test_variants_can_be_restricted_by_label(tmp_path: Path) -> None:
     ]  # in the ablation's order
     with pytest.raises(ValueError, match="loss has no variant imit-gail"):
         ablation_jobs("loss", ["Hopper-v5"], [0], tmp_path, tmp_path, ["imit-gail", "rank-pal"])
+
+
+def test_per_seed_table_lists_each_finished_run_in_seed_order(tmp_path: Path) -> None:
+    jobs = ablation_jobs("rankings", ["Hopper-v5"], [0, 1], tmp_path / "runs", tmp_path / "archive")
+    curves = {
+        ("auto", 0): "1000,10\n2000,90\n3000,20\n4000,85\n",  # from 2k on (half of 4k): 90, 20, 85
+        ("auto", 1): "1000,5\n2000,30\n3000,40\n4000,50\n",  # never at 80
+        ("vanilla", 0): "1000,95\n2000,99\n",  # stopped before --steps: not listed
+    }
+    for variant, job in jobs:
+        if (variant.label, job.seed) in curves:
+            job.archived.mkdir(parents=True)
+            (job.archived / "metrics.csv").write_text("env_steps,normalized_score\n" + curves[variant.label, job.seed])
+    rows = summarize(jobs, [4000], steps=4000)
+    assert rows[0]["runs"] == [
+        {"seed": 0, "first_step_at_threshold": 2000, "late_median": 85.0, "late_min": 20.0, "late_max": 90.0},
+        {"seed": 1, "first_step_at_threshold": None, "late_median": 40.0, "late_min": 30.0, "late_max": 50.0},
+    ]
+    assert rows[1]["runs"] == []
+    table = per_seed_table(rows, steps=4000).splitlines()
+    assert table[0] == "| env | variant | first step at >= 80, per seed | median / min / max over 2k-4k, per seed |"
+    assert table[2] == "| Hopper-v5 | auto | 2k, never | 85.0 / 20.0 / 90.0, 40.0 / 30.0 / 50.0 |"
+    assert table[3] == "| Hopper-v5 | vanilla | - | - |"
