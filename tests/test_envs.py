@@ -2,11 +2,19 @@
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
 from rankgame.envs.make import env_spec, make_env
-from rankgame.envs.rollout import rollout, to_env_action, to_normalized_action
+from rankgame.envs.rollout import (
+    evaluate_episodes,
+    rollout,
+    run_episodes,
+    success_rate,
+    to_env_action,
+    to_normalized_action,
+)
 from rankgame.envs.toy import point_goal_expert
 from rankgame.errors import RankGameError
 
@@ -52,3 +60,35 @@ def test_rollout_records_whole_seeded_episodes() -> None:
     assert [len(t) for t in first] == [40, 40] and first[0].truncated[-1]
     np.testing.assert_array_equal(first[1].obs, again[1].obs)
     assert first[0].ret > -3.0
+
+
+class _SucceedsForSeedSteps(gym.Env):
+    """30-step episodes whose first ``seed`` steps report ``info["success"]``; reward 1 per step."""
+
+    observation_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
+    action_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        self.t, self.successes = 0, int(seed or 0)
+        return np.zeros(1, np.float32), {}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        self.t += 1
+        return np.zeros(1, np.float32), 1.0, False, self.t == 30, {"success": self.t <= self.successes}
+
+
+def test_success_counts_steps_and_an_episode_succeeds_above_twenty_of_them() -> None:
+    episodes, success_steps = run_episodes(_SucceedsForSeedSteps(), lambda obs: np.zeros(1), 3, seed=19)
+    assert [len(episode) for episode in episodes] == [30, 30, 30]
+    assert success_steps == [19, 20, 21]
+    assert success_rate(success_steps) == pytest.approx(1 / 3)  # only 21 > 20
+    returns, rate = evaluate_episodes(_SucceedsForSeedSteps(), lambda obs: np.zeros(1), 2, seed=21)
+    np.testing.assert_array_equal(returns, [30.0, 30.0])
+    assert rate == 1.0
+    assert success_rate([25, 0, 30, 3]) == 0.5
+
+
+def test_tasks_without_success_have_no_success_rate() -> None:
+    env = make_env("rankgame/PointGoal-v0")
+    _, success_steps = run_episodes(env, point_goal_expert, 2, seed=0)
+    assert success_steps == [None, None] and success_rate(success_steps) is None

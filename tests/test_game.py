@@ -49,6 +49,7 @@ def test_pal_and_ral_imitate_the_analytic_expert(
     # 0 is a uniformly random policy, 100 the expert; the untrained policy scores about -100.
     assert final > 70.0, rows
     assert float(rows[-1]["reward/expert"]) > float(rows[-1]["reward/agent"])
+    assert rows[-1]["eval_success"] == ""  # the toy task reports no success
 
 
 @pytest.mark.parametrize(

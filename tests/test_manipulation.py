@@ -52,3 +52,14 @@ def test_without_gymnasium_robotics_the_error_says_what_to_install(
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "Gymnasium-Robotics" in err
     assert not (tmp_path / "run").exists()  # nothing written
+
+
+def test_pen_evaluations_report_a_success_rate(tmp_path: Path) -> None:
+    from rankgame.envs.rollout import run_episodes, success_rate
+
+    env = make_env(PEN_ID)
+    env.action_space.seed(0)
+    _, success_steps = run_episodes(env, lambda obs: env.action_space.sample(), 2, seed=0)
+    assert all(isinstance(steps, int) for steps in success_steps)
+    assert success_rate(success_steps) in (0.0, 0.5, 1.0)
+    env.close()

@@ -17,7 +17,7 @@ import numpy as np
 from rankgame.data.experts import normalized_score, shipped_envs, shipped_expert_path
 from rankgame.data.trajectories import load_trajectories
 from rankgame.envs.make import make_env
-from rankgame.envs.rollout import rollout
+from rankgame.envs.rollout import run_episodes, success_rate
 from rankgame.errors import RankGameError
 from rankgame.policy.io import load_policy
 
@@ -46,7 +46,7 @@ class EvaluateConfig:
 
 def evaluate_policy(cfg: EvaluateConfig) -> dict[str, Any]:
     """Roll out the policy and summarize its returns ``(episodes,)``; ``normalized_score`` is None
-    when no expert data is known for the task."""
+    when no expert data is known for the task, ``success_rate`` when the task reports no success."""
     cfg.validate()
     saved = load_policy(cfg.policy)
     expert_path = cfg.expert
@@ -55,7 +55,8 @@ def evaluate_policy(cfg: EvaluateConfig) -> dict[str, Any]:
     expert = load_trajectories(expert_path, env_id=saved.env_id) if expert_path is not None else None
 
     env = make_env(saved.env_id)
-    episodes = rollout(env, saved.policy_fn(deterministic=not cfg.stochastic, seed=cfg.seed), cfg.episodes, cfg.seed)
+    policy = saved.policy_fn(deterministic=not cfg.stochastic, seed=cfg.seed)
+    episodes, success_steps = run_episodes(env, policy, cfg.episodes, cfg.seed)
     env.close()
     returns = np.array([episode.ret for episode in episodes])
     summary: dict[str, Any] = {
@@ -68,6 +69,7 @@ def evaluate_policy(cfg: EvaluateConfig) -> dict[str, Any]:
         "return_min": float(returns.min()),
         "return_max": float(returns.max()),
         "mean_length": float(np.mean([len(episode) for episode in episodes])),
+        "success_rate": success_rate(success_steps),
         "normalized_score": None,
     }
     if expert is not None:

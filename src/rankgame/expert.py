@@ -31,7 +31,7 @@ from rankgame.checkpoint import (
 from rankgame.cli_args import config_to_json
 from rankgame.data.trajectories import save_trajectories
 from rankgame.envs.make import make_env
-from rankgame.envs.rollout import EVAL_SEED_OFFSET, episode_returns, random_policy, rollout
+from rankgame.envs.rollout import EVAL_SEED_OFFSET, episode_returns, evaluate_episodes, random_policy, rollout
 from rankgame.errors import RankGameError
 from rankgame.logging import RunLogger
 from rankgame.policy.io import load_policy, save_policy
@@ -141,6 +141,7 @@ LOG_COLUMNS = (
     "train_return",
     "eval_return",
     "eval_return_std",
+    "eval_success",
     "losses/critic",
     "losses/actor",
     "losses/alpha",
@@ -203,7 +204,9 @@ def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any
             bar.update(1)
             if step % cfg.eval_every == 0 or step == cfg.steps:
                 eval_start = time.perf_counter()
-                returns = episode_returns(eval_env, learner.policy(), cfg.eval_episodes, cfg.seed + EVAL_SEED_OFFSET)
+                returns, success = evaluate_episodes(
+                    eval_env, learner.policy(), cfg.eval_episodes, cfg.seed + EVAL_SEED_OFFSET
+                )
                 progress.eval_s += time.perf_counter() - eval_start
                 progress.wall_s = time.perf_counter() - start
                 logger.log(
@@ -214,6 +217,7 @@ def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any
                         "train_return": progress.train_return,
                         "eval_return": float(returns.mean()),
                         "eval_return_std": float(returns.std()),
+                        **({} if success is None else {"eval_success": success}),
                         **metrics,
                     }
                 )
@@ -233,7 +237,8 @@ def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any
                         spec.act_high,
                         **policy_meta,
                     )
-                bar.set_postfix(eval=f"{returns.mean():.0f}", best=f"{progress.best_return:.0f}")
+                postfix = {"eval": f"{returns.mean():.0f}", "best": f"{progress.best_return:.0f}"}
+                bar.set_postfix(postfix if success is None else {**postfix, "success": f"{success:.0%}"})
                 if step % cfg.checkpoint_every < cfg.eval_every or step == cfg.steps:
                     learner_meta, arrays = learner.checkpoint()
                     metadata = {**learner_meta, "config": config_to_json(cfg), "progress": vars(progress)}

@@ -14,7 +14,8 @@ from rankgame.atomic import atomic_write_bytes
 class RunLogger:
     """Append rows of scalar metrics to ``DIR/metrics.csv`` and TensorBoard (``DIR/tb``).
 
-    Columns are fixed when the logger is made; a row may leave some empty. Rows are flushed as they
+    Columns are fixed when the logger is made (an existing file keeps its own order, with new columns
+    appended: :func:`extend_header`); a row may leave some empty. Rows are flushed as they
     are written, so a killed run leaves only whole rows behind. ``resume_step`` continues a run from
     its checkpoint at that step: CSV rows after it are dropped (they will be logged again) and
     TensorBoard purges its events after it, so no row is duplicated or missing.
@@ -29,11 +30,11 @@ class RunLogger:
         resume_step: int | None = None,
     ) -> None:
         self.path = Path(out_dir) / "metrics.csv"
-        self.columns = list(columns)
         self.step_key = step_key
         if resume_step is not None:
             trim_metrics(self.path, resume_step)
         new_file = not self.path.exists() or self.path.stat().st_size == 0
+        self.columns = list(columns) if new_file else extend_header(self.path, columns)
         self._file = self.path.open("a", newline="")
         self._writer = csv.DictWriter(self._file, fieldnames=self.columns, extrasaction="ignore")
         if new_file:
@@ -73,6 +74,22 @@ def trim_metrics(path: Path, last_step: int) -> None:
     buffer = io.StringIO()
     csv.writer(buffer, lineterminator="\n").writerows(kept)
     atomic_write_bytes(path, buffer.getvalue().encode())
+
+
+def extend_header(path: Path, columns: Sequence[str]) -> list[str]:
+    """The columns of an existing CSV file, with those of ``columns`` it lacks appended (the file is then
+    rewritten atomically, its rows padded with empty cells), so that a run logged by an older version
+    resumes with whole rows under a matching header."""
+    with path.open(newline="") as handle:
+        rows = list(csv.reader(handle))
+    header = rows[0]
+    missing = [column for column in columns if column not in header]
+    if missing:
+        rows = [header + missing] + [row + [""] * len(missing) for row in rows[1:]]
+        buffer = io.StringIO()
+        csv.writer(buffer, lineterminator="\n").writerows(rows)
+        atomic_write_bytes(path, buffer.getvalue().encode())
+    return header + missing
 
 
 def _fmt(value: float | int) -> str | int:

@@ -27,16 +27,30 @@ def to_normalized_action(acts: np.ndarray, low: np.ndarray, high: np.ndarray) ->
     return 2.0 * (acts - low) / (high - low) - 1.0
 
 
-def rollout(env: gym.Env, policy: PolicyFn, n_episodes: int, seed: int) -> list[Trajectory]:
-    """Record ``n_episodes`` full episodes; episode ``i`` starts from ``env.reset(seed=seed + i)``."""
-    episodes = []
+#: An episode succeeds when its task reports ``info["success"]`` at more than this many of its steps:
+#: the rule of mjrl's pen-v0 evaluation (the pen held at the goal for more than 20 of its 100 steps).
+SUCCESS_MIN_STEPS = 20
+
+
+def run_episodes(
+    env: gym.Env, policy: PolicyFn, n_episodes: int, seed: int
+) -> tuple[list[Trajectory], list[int | None]]:
+    """Record ``n_episodes`` full episodes; episode ``i`` starts from ``env.reset(seed=seed + i)``.
+
+    Also returns, per episode, the number of steps at which the task reported ``info["success"]``
+    (None for tasks that never report it, such as the locomotion tasks).
+    """
+    episodes, success_steps = [], []
     for i in range(n_episodes):
         obs, _ = env.reset(seed=seed + i)
         obs_list, acts, rews, terms, truncs = [obs], [], [], [], []
+        successes: int | None = None
         done = False
         while not done:
             act = np.asarray(policy(obs), dtype=np.float32)
-            obs, rew, terminated, truncated, _ = env.step(act)
+            obs, rew, terminated, truncated, info = env.step(act)
+            if "success" in info:
+                successes = (successes or 0) + bool(info["success"])
             obs_list.append(obs)
             acts.append(act)
             rews.append(rew)
@@ -52,12 +66,33 @@ def rollout(env: gym.Env, policy: PolicyFn, n_episodes: int, seed: int) -> list[
                 truncated=np.asarray(truncs, bool),
             )
         )
-    return episodes
+        success_steps.append(successes)
+    return episodes, success_steps
+
+
+def rollout(env: gym.Env, policy: PolicyFn, n_episodes: int, seed: int) -> list[Trajectory]:
+    """The episodes of :func:`run_episodes` alone."""
+    return run_episodes(env, policy, n_episodes, seed)[0]
+
+
+def success_rate(success_steps: list[int | None]) -> float | None:
+    """Share of episodes whose success count (from :func:`run_episodes`) exceeds :data:`SUCCESS_MIN_STEPS`;
+    None when the task reports no success."""
+    if any(steps is None for steps in success_steps) or not success_steps:
+        return None
+    return float(np.mean([steps > SUCCESS_MIN_STEPS for steps in success_steps]))
+
+
+def evaluate_episodes(env: gym.Env, policy: PolicyFn, n_episodes: int, seed: int) -> tuple[np.ndarray, float | None]:
+    """Undiscounted returns ``(n_episodes,)`` of ``policy`` and its :func:`success_rate` (seeding as in
+    :func:`run_episodes`)."""
+    episodes, success_steps = run_episodes(env, policy, n_episodes, seed)
+    return np.array([episode.ret for episode in episodes]), success_rate(success_steps)
 
 
 def episode_returns(env: gym.Env, policy: PolicyFn, n_episodes: int, seed: int) -> np.ndarray:
-    """Undiscounted returns ``(n_episodes,)`` of ``policy`` (see :func:`rollout` for seeding)."""
-    return np.array([episode.ret for episode in rollout(env, policy, n_episodes, seed)])
+    """Undiscounted returns ``(n_episodes,)`` of ``policy`` (see :func:`run_episodes` for seeding)."""
+    return evaluate_episodes(env, policy, n_episodes, seed)[0]
 
 
 def random_policy(env: gym.Env, seed: int) -> PolicyFn:

@@ -37,7 +37,13 @@ from rankgame.data.experts import normalized_score, shipped_envs, shipped_expert
 from rankgame.data.preferences import load_preferences, shipped_preferences_path
 from rankgame.data.trajectories import Trajectory, TrajectoryFile, load_trajectories
 from rankgame.envs.make import EnvSpec, env_spec, make_env
-from rankgame.envs.rollout import EVAL_SEED_OFFSET, episode_returns, random_policy, to_normalized_action
+from rankgame.envs.rollout import (
+    EVAL_SEED_OFFSET,
+    episode_returns,
+    evaluate_episodes,
+    random_policy,
+    to_normalized_action,
+)
 from rankgame.errors import RankGameError
 from rankgame.game.leaders import add_agent_data, fit_reward
 from rankgame.game.methods import METHODS
@@ -195,12 +201,21 @@ class TrainConfig:
             )
 
 
+def _eval_postfix(evaluation: dict[str, float]) -> dict[str, str]:
+    """Progress-bar fields of an evaluation: normalized score, return and, where known, success rate."""
+    postfix = {"score": f"{evaluation['normalized_score']:.1f}", "ret": f"{evaluation['eval_return']:.0f}"}
+    if "eval_success" in evaluation:
+        postfix["success"] = f"{evaluation['eval_success']:.0%}"
+    return postfix
+
+
 LOG_COLUMNS = (
     "env_steps",
     "wall_s",
     "steps_per_s",
     "eval_return",
     "normalized_score",
+    "eval_success",
     "reward/train_loss",
     "reward/holdout_loss",
     "reward/agent",
@@ -429,13 +444,18 @@ class RankingGame:
         real = inputs[inputs[:, self.learner.spec.obs_dim] == 0.0]
         return self.player.mean_reward(self.reward_state.params, real) if len(real) else float("nan")
 
-    def evaluate(self) -> tuple[float, float]:
-        """Mean true return of the deterministic policy and its normalized score."""
-        returns = episode_returns(
+    def evaluate(self) -> dict[str, float]:
+        """The deterministic policy's mean true return, its normalized score and, for tasks that report
+        success, its success rate (``eval_return``, ``normalized_score``, ``eval_success``)."""
+        returns, success = evaluate_episodes(
             self.eval_env, self.learner.policy(), self.cfg.eval_episodes, self.cfg.seed + EVAL_SEED_OFFSET
         )
         mean = float(returns.mean())
-        return mean, float(normalized_score(mean, self.expert_return, self.random_return))
+        result = {
+            "eval_return": mean,
+            "normalized_score": float(normalized_score(mean, self.expert_return, self.random_return)),
+        }
+        return result if success is None else {**result, "eval_success": success}
 
     # --- checkpoints -------------------------------------------------------------------------
     def save(self, path: Path, extra: dict[str, Any]) -> None:
@@ -482,7 +502,7 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
     )
     start_step = game.learner.env_steps
     start = time.perf_counter() - elapsed
-    last_eval: tuple[float, float] = (float("nan"), float("nan"))
+    last_eval: dict[str, float] = {"eval_return": float("nan"), "normalized_score": float("nan")}
     bar = tqdm(
         total=cfg.steps,
         initial=start_step,
@@ -509,13 +529,12 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
                         "env_steps": step,
                         "wall_s": wall,
                         "steps_per_s": step / max(wall - eval_s, 1e-9),  # training only, as in `rankgame expert`
-                        "eval_return": last_eval[0],
-                        "normalized_score": last_eval[1],
+                        **last_eval,
                         **game.reward_metrics,
                         **game.sac_metrics,
                     }
                 )
-                bar.set_postfix(score=f"{last_eval[1]:.1f}", ret=f"{last_eval[0]:.0f}")
+                bar.set_postfix(_eval_postfix(last_eval))
             if step % game.n_pol == 0 and (step % cfg.checkpoint_every < game.n_pol or step == cfg.steps):
                 game.save(out / CHECKPOINT_NAME, {"wall_s": time.perf_counter() - start, "eval_s": eval_s})
             bar.update(1)
@@ -537,6 +556,5 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
         "env": cfg.env,
         "method": cfg.method,
         "steps": cfg.steps,
-        "eval_return": last_eval[0],
-        "normalized_score": last_eval[1],
+        **last_eval,
     }
