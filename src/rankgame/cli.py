@@ -157,6 +157,9 @@ class RecordConfig:
     """Seed of the first episode's reset (episode i uses seed + i)."""
     random_episodes: int = 100
     """Episodes of a uniformly random policy, for the random return in the metadata."""
+    successful_only: bool = False
+    """Keep only episodes that succeed (tasks that report success, such as rankgame/Pen-v0): episodes
+    seed, seed + 1, ... are rolled out until --episodes of them succeed."""
 
 
 def _cmd_record(argv: Sequence[str]) -> int:
@@ -170,7 +173,13 @@ def _cmd_record(argv: Sequence[str]) -> int:
     if cfg.seed < 0:
         raise RankGameError(f"--seed must be >= 0 (got {cfg.seed})")
     summary = record_expert(
-        cfg.policy, cfg.out, cfg.episodes, cfg.seed, cfg.random_episodes, command=shlex.join([PROG, "record", *argv])
+        cfg.policy,
+        cfg.out,
+        cfg.episodes,
+        cfg.seed,
+        cfg.random_episodes,
+        successful_only=cfg.successful_only,
+        command=shlex.join([PROG, "record", *argv]),
     )
     print(json.dumps(summary, indent=2))
     return 0

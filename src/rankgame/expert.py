@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import jax
 import numpy as np
 from tqdm import tqdm
@@ -29,9 +30,18 @@ from rankgame.checkpoint import (
     save_checkpoint,
 )
 from rankgame.cli_args import config_to_json
-from rankgame.data.trajectories import save_trajectories
+from rankgame.data.trajectories import Trajectory, save_trajectories
 from rankgame.envs.make import make_env
-from rankgame.envs.rollout import EVAL_SEED_OFFSET, episode_returns, evaluate_episodes, random_policy, rollout
+from rankgame.envs.rollout import (
+    EVAL_SEED_OFFSET,
+    SUCCESS_MIN_STEPS,
+    PolicyFn,
+    episode_returns,
+    evaluate_episodes,
+    random_policy,
+    rollout,
+    run_episodes,
+)
 from rankgame.errors import RankGameError
 from rankgame.logging import RunLogger
 from rankgame.policy.io import load_policy, save_policy
@@ -108,13 +118,49 @@ def random_return(env_id: str, episodes: int, seed: int) -> tuple[float, float]:
     return float(returns.mean()), float(returns.std())
 
 
+#: ``rankgame record --successful-only`` gives up after this many tries per episode asked for.
+MAX_TRIES_PER_EPISODE = 20
+
+
+def successful_episodes(env: gym.Env, policy: PolicyFn, episodes: int, seed: int) -> tuple[list[Trajectory], int]:
+    """The first ``episodes`` episodes that succeed (:func:`~rankgame.envs.rollout.success_rate`'s rule)
+    among episodes reset with ``seed``, ``seed + 1``, ..., and the number of episodes tried.
+
+    Raises:
+        RankGameError: if the task reports no success, or too few episodes succeed within
+            ``MAX_TRIES_PER_EPISODE * episodes`` tries.
+    """
+    kept: list[Trajectory] = []
+    tries = 0
+    while len(kept) < episodes:
+        if tries == MAX_TRIES_PER_EPISODE * episodes:
+            raise RankGameError(f"only {len(kept)} of {tries} episodes succeeded; fewer --episodes, or a better policy")
+        (episode,), (success_steps,) = run_episodes(env, policy, 1, seed + tries)
+        if success_steps is None:
+            raise RankGameError("--successful-only: this task reports no success")
+        if success_steps > SUCCESS_MIN_STEPS:
+            kept.append(episode)
+        tries += 1
+    return kept, tries
+
+
 def record_expert(
-    policy_path: Path, out: Path, episodes: int, seed: int, random_episodes: int, **metadata: Any
+    policy_path: Path,
+    out: Path,
+    episodes: int,
+    seed: int,
+    random_episodes: int,
+    successful_only: bool = False,
+    **metadata: Any,
 ) -> dict[str, Any]:
-    """Roll out a saved policy deterministically and write its trajectories with their provenance."""
+    """Roll out a saved policy deterministically and write its trajectories with their provenance
+    (with ``successful_only``, only episodes that succeed: :func:`successful_episodes`)."""
     saved = load_policy(policy_path)
     env = make_env(saved.env_id)
-    trajectories = rollout(env, saved.policy_fn(), episodes, seed)
+    if successful_only:
+        trajectories, tried = successful_episodes(env, saved.policy_fn(), episodes, seed)
+    else:
+        trajectories, tried = rollout(env, saved.policy_fn(), episodes, seed), episodes
     env.close()
     rand_mean, rand_std = random_return(saved.env_id, random_episodes, seed + RANDOM_SEED_OFFSET)
     save_trajectories(
@@ -125,13 +171,20 @@ def record_expert(
         source="expert",
         policy_metadata=saved.metadata,
         record_seed=seed,
+        successful_only=successful_only,
+        episodes_tried=tried,
         random_return_mean=rand_mean,
         random_return_std=rand_std,
         random_episodes=random_episodes,
         versions=library_versions(),
     )
     returns = [t.ret for t in trajectories]
-    return {"return_mean": float(np.mean(returns)), "return_std": float(np.std(returns)), "random_return": rand_mean}
+    return {
+        "return_mean": float(np.mean(returns)),
+        "return_std": float(np.std(returns)),
+        "random_return": rand_mean,
+        "episodes_tried": tried,
+    }
 
 
 LOG_COLUMNS = (
