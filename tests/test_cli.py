@@ -74,6 +74,12 @@ def test_expert_end_to_end_on_the_toy_task(tmp_path: Path) -> None:
     )
     assert again.returncode == 0, again.stderr
     assert len(load_trajectories(tmp_path / "r.npz").trajectories) == 2
+    # The toy task reports no success: --successful-only is refused, and nothing is written.
+    refused = run_cli(
+        "record", "--policy", str(out / "best_policy.msgpack"), "--out", str(tmp_path / "s.npz"), "--successful-only"
+    )
+    assert_one_line_error(refused, "reports no success")
+    assert not (tmp_path / "s.npz").exists()
 
 
 def test_experts_listing_as_json() -> None:

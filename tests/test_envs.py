@@ -92,3 +92,17 @@ def test_tasks_without_success_have_no_success_rate() -> None:
     env = make_env("rankgame/PointGoal-v0")
     _, success_steps = run_episodes(env, point_goal_expert, 2, seed=0)
     assert success_steps == [None, None] and success_rate(success_steps) is None
+
+
+def test_successful_episodes_keeps_the_first_that_succeed_and_gives_up_in_time() -> None:
+    from rankgame.errors import RankGameError
+    from rankgame.expert import MAX_TRIES_PER_EPISODE, successful_episodes
+
+    policy = lambda obs: np.zeros(1)  # noqa: E731
+    # Seeds 19 and 20 give 19 and 20 successful steps (not more than 20): skipped; 21 and 22 kept.
+    kept, tries = successful_episodes(_SucceedsForSeedSteps(), policy, 2, seed=19)
+    assert (len(kept), tries) == (2, 4)
+    with pytest.raises(RankGameError, match=f"only 0 of {MAX_TRIES_PER_EPISODE} episodes succeeded"):
+        successful_episodes(_SucceedsForSeedSteps(), policy, 1, seed=0)  # seeds 0-19: at most 19 steps
+    with pytest.raises(RankGameError, match="reports no success"):
+        successful_episodes(make_env("rankgame/PointGoal-v0"), point_goal_expert, 1, seed=0)
