@@ -34,9 +34,9 @@ from rankgame.data.trajectories import Trajectory, save_trajectories
 from rankgame.envs.make import make_env
 from rankgame.envs.rollout import (
     EVAL_SEED_OFFSET,
-    SUCCESS_MIN_STEPS,
     PolicyFn,
     episode_returns,
+    episode_succeeded,
     evaluate_episodes,
     random_policy,
     rollout,
@@ -123,7 +123,7 @@ MAX_TRIES_PER_EPISODE = 20
 
 
 def successful_episodes(env: gym.Env, policy: PolicyFn, episodes: int, seed: int) -> tuple[list[Trajectory], int]:
-    """The first ``episodes`` episodes that succeed (:func:`~rankgame.envs.rollout.success_rate`'s rule)
+    """The first ``episodes`` episodes that succeed (:func:`~rankgame.envs.rollout.episode_succeeded`)
     among episodes reset with ``seed``, ``seed + 1``, ..., and the number of episodes tried.
 
     Raises:
@@ -138,7 +138,7 @@ def successful_episodes(env: gym.Env, policy: PolicyFn, episodes: int, seed: int
         (episode,), (success_steps,) = run_episodes(env, policy, 1, seed + tries)
         if success_steps is None:
             raise RankGameError("--successful-only: this task reports no success")
-        if success_steps > SUCCESS_MIN_STEPS:
+        if episode_succeeded(success_steps):
             kept.append(episode)
         tries += 1
     return kept, tries

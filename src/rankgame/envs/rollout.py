@@ -75,12 +75,17 @@ def rollout(env: gym.Env, policy: PolicyFn, n_episodes: int, seed: int) -> list[
     return run_episodes(env, policy, n_episodes, seed)[0]
 
 
+def episode_succeeded(success_steps: int) -> bool:
+    """Whether an episode whose task reported success at ``success_steps`` steps succeeded."""
+    return success_steps > SUCCESS_MIN_STEPS
+
+
 def success_rate(success_steps: list[int | None]) -> float | None:
-    """Share of episodes whose success count (from :func:`run_episodes`) exceeds :data:`SUCCESS_MIN_STEPS`;
-    None when the task reports no success."""
+    """Share of episodes (success counts from :func:`run_episodes`) that succeeded; None when the task
+    reports no success."""
     if any(steps is None for steps in success_steps) or not success_steps:
         return None
-    return float(np.mean([steps > SUCCESS_MIN_STEPS for steps in success_steps]))
+    return float(np.mean([episode_succeeded(steps) for steps in success_steps]))
 
 
 def evaluate_episodes(env: gym.Env, policy: PolicyFn, n_episodes: int, seed: int) -> tuple[np.ndarray, float | None]:
