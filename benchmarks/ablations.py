@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from sample_efficiency import Job, first_step_text, logged_folder, read_scores, run_jobs, run_profile
+from sample_efficiency import Job, first_step_text, logged_folder, read_scores, run_jobs, run_profile, spread_text
 
 
 @dataclass(frozen=True)
@@ -244,7 +244,7 @@ def per_seed_table(rows: list[dict], steps: int, threshold: float = 80.0) -> str
     ]
     for row in rows:
         firsts = ", ".join(first_step_text(run) for run in row["runs"])
-        spreads = ", ".join(f"{run['late_median']} / {run['late_min']} / {run['late_max']}" for run in row["runs"])
+        spreads = ", ".join(spread_text(run) for run in row["runs"])
         lines.append(f"| {row['env']} | {row['variant']} | {firsts or '-'} | {spreads or '-'} |")
     return "\n".join(lines)
 

@@ -212,6 +212,11 @@ def first_step_text(profile: dict) -> str:
     return "never" if first is None else f"{first // 1000}k"
 
 
+def spread_text(profile: dict) -> str:
+    """A profile's median / minimum / maximum over the second half of the run as table text."""
+    return f"{profile['late_median']} / {profile['late_min']} / {profile['late_max']}"
+
+
 def per_run(args: argparse.Namespace, all_scores: RunScores) -> list[dict]:
     """:func:`run_profile` of every run that reached ``--steps``, with its env, method and seed."""
     rows = []
@@ -258,8 +263,7 @@ def main() -> None:
     print(f"\n| env | method | seed | first step at >= {args.threshold:g} | median / min / max over {half} |")
     print("| --- | --- | --- | --- | --- |")
     for row in runs:
-        spread = f"{row['late_median']} / {row['late_min']} / {row['late_max']}"
-        print(f"| {row['env']} | {row['method']} | {row['seed']} | {first_step_text(row)} | {spread} |")
+        print(f"| {row['env']} | {row['method']} | {row['seed']} | {first_step_text(row)} | {spread_text(row)} |")
 
 
 if __name__ == "__main__":

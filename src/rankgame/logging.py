@@ -66,30 +66,34 @@ def trim_metrics(path: Path, last_step: int) -> None:
     """Atomically keep only the header and the rows of ``path`` whose first column is <= ``last_step``."""
     if not path.exists():
         return
-    with path.open(newline="") as handle:
-        rows = list(csv.reader(handle))
+    rows = _read_rows(path)
     if not rows:
         return
-    kept = [rows[0]] + [row for row in rows[1:] if row and row[0].isdigit() and int(row[0]) <= last_step]
-    buffer = io.StringIO()
-    csv.writer(buffer, lineterminator="\n").writerows(kept)
-    atomic_write_bytes(path, buffer.getvalue().encode())
+    _write_rows(path, [rows[0]] + [row for row in rows[1:] if row and row[0].isdigit() and int(row[0]) <= last_step])
 
 
 def extend_header(path: Path, columns: Sequence[str]) -> list[str]:
     """The columns of an existing CSV file, with those of ``columns`` it lacks appended (the file is then
     rewritten atomically, its rows padded with empty cells), so that a run logged by an older version
     resumes with whole rows under a matching header."""
-    with path.open(newline="") as handle:
-        rows = list(csv.reader(handle))
+    rows = _read_rows(path)
     header = rows[0]
     missing = [column for column in columns if column not in header]
     if missing:
-        rows = [header + missing] + [row + [""] * len(missing) for row in rows[1:]]
-        buffer = io.StringIO()
-        csv.writer(buffer, lineterminator="\n").writerows(rows)
-        atomic_write_bytes(path, buffer.getvalue().encode())
+        _write_rows(path, [header + missing] + [row + [""] * len(missing) for row in rows[1:]])
     return header + missing
+
+
+def _read_rows(path: Path) -> list[list[str]]:
+    with path.open(newline="") as handle:
+        return list(csv.reader(handle))
+
+
+def _write_rows(path: Path, rows: list[list[str]]) -> None:
+    """Replace ``path`` atomically with ``rows`` as CSV."""
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\n").writerows(rows)
+    atomic_write_bytes(path, buffer.getvalue().encode())
 
 
 def _fmt(value: float | int) -> str | int:
