@@ -18,7 +18,9 @@ def test_window_mean_averages_the_evaluations_up_to_the_step() -> None:
 
 
 def test_summary_gives_the_point_and_the_window_over_seeds() -> None:
-    args = argparse.Namespace(envs=["Hopper-v5"], methods=["rank-pal-auto"], seeds=[0, 1, 2], at=[100_000], window=20_000)
+    args = argparse.Namespace(
+        envs=["Hopper-v5"], methods=["rank-pal-auto"], seeds=[0, 1, 2], at=[100_000], window=20_000
+    )
     all_scores = {
         ("Hopper-v5", "rank-pal-auto", 0): {80_000: 0.0, 90_000: 20.0, 100_000: 40.0},
         ("Hopper-v5", "rank-pal-auto", 1): {80_000: 0.0, 90_000: 60.0, 100_000: 80.0},
