@@ -41,6 +41,7 @@ from rankgame.envs.rollout import (
     random_policy,
     rollout,
     run_episodes,
+    success_postfix,
 )
 from rankgame.errors import RankGameError
 from rankgame.logging import RunLogger
@@ -291,7 +292,7 @@ def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any
                         **policy_meta,
                     )
                 postfix = {"eval": f"{returns.mean():.0f}", "best": f"{progress.best_return:.0f}"}
-                bar.set_postfix(postfix if success is None else {**postfix, "success": f"{success:.0%}"})
+                bar.set_postfix({**postfix, **success_postfix(success)})
                 if step % cfg.checkpoint_every < cfg.eval_every or step == cfg.steps:
                     learner_meta, arrays = learner.checkpoint()
                     metadata = {**learner_meta, "config": config_to_json(cfg), "progress": vars(progress)}

@@ -88,6 +88,11 @@ def success_rate(success_steps: list[int | None]) -> float | None:
     return float(np.mean([episode_succeeded(steps) for steps in success_steps]))
 
 
+def success_postfix(success: float | None) -> dict[str, str]:
+    """Progress-bar field of a success rate, ``{"success": "60%"}``; empty when the task reports none."""
+    return {} if success is None else {"success": f"{success:.0%}"}
+
+
 def evaluate_episodes(env: gym.Env, policy: PolicyFn, n_episodes: int, seed: int) -> tuple[np.ndarray, float | None]:
     """Undiscounted returns ``(n_episodes,)`` of ``policy`` and its :func:`success_rate` (seeding as in
     :func:`run_episodes`)."""

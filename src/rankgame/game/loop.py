@@ -42,6 +42,7 @@ from rankgame.envs.rollout import (
     episode_returns,
     evaluate_episodes,
     random_policy,
+    success_postfix,
     to_normalized_action,
 )
 from rankgame.errors import RankGameError
@@ -203,10 +204,11 @@ class TrainConfig:
 
 def _eval_postfix(evaluation: dict[str, float]) -> dict[str, str]:
     """Progress-bar fields of an evaluation: normalized score, return and, where known, success rate."""
-    postfix = {"score": f"{evaluation['normalized_score']:.1f}", "ret": f"{evaluation['eval_return']:.0f}"}
-    if "eval_success" in evaluation:
-        postfix["success"] = f"{evaluation['eval_success']:.0%}"
-    return postfix
+    return {
+        "score": f"{evaluation['normalized_score']:.1f}",
+        "ret": f"{evaluation['eval_return']:.0f}",
+        **success_postfix(evaluation.get("eval_success")),
+    }
 
 
 LOG_COLUMNS = (
