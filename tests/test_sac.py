@@ -131,6 +131,19 @@ def test_presets_differ_as_documented() -> None:
         sac_preset("fancy")
 
 
+def test_torch_init_draws_weights_and_biases_within_one_over_root_fan_in() -> None:
+    # Observations of 11 entries and 3 actions: the critics' first layer reads 14 inputs.
+    state = SAC(11, 3, SACConfig(hidden_sizes=(64,), weight_init="torch")).init(jax.random.key(0))
+    actor, critic = state.actor_params["params"]["MLP_0"], state.critic_params["params"]["VmapMLP_0"]
+    for layer, fan_in in ((actor["Dense_0"], 11), (actor["Dense_1"], 64), (critic["Dense_0"], 14)):
+        bound = 1 / np.sqrt(fan_in)
+        assert 0.9 * bound < np.abs(layer["kernel"]).max() <= bound  # fills the range
+        assert 0 < np.abs(layer["bias"]).max() <= bound
+    lecun = SAC(11, 3, SACConfig(hidden_sizes=(64,))).init(jax.random.key(0)).actor_params["params"]["MLP_0"]
+    assert not np.any(lecun["Dense_0"]["bias"])  # Flax's default: zero biases
+    assert np.std(lecun["Dense_0"]["kernel"]) > 1.5 * np.std(actor["Dense_0"]["kernel"])  # 1 / sqrt(3) of it
+
+
 def test_invalid_config_is_rejected() -> None:
     with pytest.raises(ValueError, match="gamma"):
         SACConfig(gamma=1.5).validate()

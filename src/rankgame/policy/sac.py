@@ -14,9 +14,10 @@ loop rescales them to the environment's bounds.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, Literal
 
 import flax.linen as nn
 import flax.struct
@@ -69,6 +70,10 @@ class SACConfig:
     """Gradient steps per environment step (update-to-data ratio)."""
     buffer_size: int = 1_000_000
     """Replay buffer capacity in transitions."""
+    weight_init: Literal["lecun", "torch"] = "lecun"
+    """Initial weights of the actor and critics: ``lecun`` (Flax's default: truncated-normal weights of
+    variance 1/fan_in, zero biases) or ``torch`` (PyTorch's ``nn.Linear`` default, which SpinningUp's
+    SAC, the paper's, keeps: weights and biases uniform in +-1/sqrt(fan_in))."""
 
     def validate(self) -> None:
         """Raise ``ValueError`` with a one-line reason if the values make no sense together."""
@@ -84,6 +89,7 @@ class SACConfig:
             (self.buffer_size >= self.batch_size, "buffer_size must be at least batch_size"),
             (all(h > 0 for h in self.hidden_sizes), "hidden_sizes must be positive"),
             (self.start_steps >= 0 and self.update_after >= 0, "start_steps and update_after must be >= 0"),
+            (self.weight_init in ("lecun", "torch"), "weight_init must be lecun or torch"),
         ]
         require(checks)
 
@@ -103,17 +109,35 @@ def sac_preset(name: str, **overrides: Any) -> SACConfig:
     return replace(SAC_PRESETS[name], **overrides)
 
 
+def _symmetric_uniform(bound: float) -> Callable[..., jax.Array]:
+    """Initializer drawing uniformly from ``[-bound, bound]``."""
+
+    def init(key: jax.Array, shape: tuple[int, ...], dtype: Any = jnp.float32) -> jax.Array:
+        return jax.random.uniform(key, shape, dtype, -bound, bound)
+
+    return init
+
+
+def dense(width: int, fan_in: int, weight_init: str) -> nn.Dense:
+    """A dense layer of ``width`` outputs initialized as ``weight_init`` says (:attr:`SACConfig.weight_init`)."""
+    if weight_init == "lecun":
+        return nn.Dense(width)
+    bound = 1.0 / math.sqrt(fan_in)
+    return nn.Dense(width, kernel_init=_symmetric_uniform(bound), bias_init=_symmetric_uniform(bound))
+
+
 class MLP(nn.Module):
-    """ReLU MLP with a linear output layer."""
+    """ReLU MLP with a linear output layer; ``weight_init`` as :attr:`SACConfig.weight_init`."""
 
     hidden_sizes: tuple[int, ...]
     out_dim: int
+    weight_init: str = "lecun"
 
     @nn.compact
     def __call__(self, x: jax.Array) -> jax.Array:
         for width in self.hidden_sizes:
-            x = nn.relu(nn.Dense(width)(x))
-        return nn.Dense(self.out_dim)(x)
+            x = nn.relu(dense(width, x.shape[-1], self.weight_init)(x))
+        return dense(self.out_dim, x.shape[-1], self.weight_init)(x)
 
 
 class Actor(nn.Module):
@@ -121,10 +145,11 @@ class Actor(nn.Module):
 
     hidden_sizes: tuple[int, ...]
     act_dim: int
+    weight_init: str = "lecun"
 
     @nn.compact
     def __call__(self, obs: jax.Array) -> tuple[jax.Array, jax.Array]:
-        out = MLP(self.hidden_sizes, 2 * self.act_dim)(obs)
+        out = MLP(self.hidden_sizes, 2 * self.act_dim, self.weight_init)(obs)
         mean, log_std = jnp.split(out, 2, axis=-1)
         return mean, jnp.clip(log_std, LOG_STD_MIN, LOG_STD_MAX)
 
@@ -133,6 +158,7 @@ class TwinCritic(nn.Module):
     """Two independent Q networks evaluated together: ``(obs, acts) -> q`` of shape ``(2, B)``."""
 
     hidden_sizes: tuple[int, ...]
+    weight_init: str = "lecun"
 
     @nn.compact
     def __call__(self, obs: jax.Array, acts: jax.Array) -> jax.Array:
@@ -144,7 +170,7 @@ class TwinCritic(nn.Module):
             out_axes=0,
             axis_size=2,
         )
-        return batched(self.hidden_sizes, 1)(jnp.concatenate([obs, acts], axis=-1))[..., 0]
+        return batched(self.hidden_sizes, 1, self.weight_init)(jnp.concatenate([obs, acts], axis=-1))[..., 0]
 
 
 def squashed_gaussian_sample(mean: jax.Array, log_std: jax.Array, noise: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -214,8 +240,8 @@ class SAC:
 
     def __post_init__(self) -> None:
         self.config.validate()
-        self.actor = Actor(self.config.hidden_sizes, self.act_dim)
-        self.critic = TwinCritic(self.config.hidden_sizes)
+        self.actor = Actor(self.config.hidden_sizes, self.act_dim, self.config.weight_init)
+        self.critic = TwinCritic(self.config.hidden_sizes, self.config.weight_init)
         cfg = self.config
         self.target_entropy = float(-self.act_dim if cfg.target_entropy is None else cfg.target_entropy)
         self.actor_tx = optax.adam(cfg.actor_lr)
