@@ -109,7 +109,7 @@ class DoorEnv(gym.Env):
                 control_freq=20,
                 horizon=DOOR_HORIZON,
                 ignore_done=True,  # the time limit is the registration's
-                hard_reset=False,  # rebuilding the simulation each episode costs about a second
+                hard_reset=False,  # a hard reset rebuilds the whole simulation every episode
             )
         low, high = self._door.action_spec
         self.action_space = gym.spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
