@@ -27,7 +27,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from sample_efficiency import Job, first_step_text, logged_folder, read_scores, run_jobs, run_profile, spread_text
+from sample_efficiency import (
+    Job,
+    first_step_text,
+    logged_folder,
+    mean_and_std,
+    read_scores,
+    run_jobs,
+    run_profile,
+    spread_text,
+)
 
 
 @dataclass(frozen=True)
@@ -184,12 +193,6 @@ def ablation_jobs(
     ]
 
 
-def _mean_and_std(values: list[float]) -> tuple[float | None, float | None]:
-    if not values:
-        return None, None
-    return round(float(np.mean(values)), 1), round(float(np.std(values)), 1)
-
-
 def summarize(jobs: list[tuple[Variant, Job]], at: list[int], steps: int, threshold: float = 80.0) -> list[dict]:
     """One row per (env, variant): over seeds, the mean and standard deviation of the normalized score
     at each step of ``at`` and of each run's mean over all its evaluations up to ``steps`` (the area
@@ -204,11 +207,11 @@ def summarize(jobs: list[tuple[Variant, Job]], at: list[int], steps: int, thresh
         row: dict = {"env": env, "variant": label, "at": []}
         for step in at:
             scores = [run[step] for run in runs if step in run]
-            mean, std = _mean_and_std(scores)
+            mean, std = mean_and_std(scores)
             row["at"].append({"step": step, "seeds": len(scores), "mean": mean, "std": std})
         finished = [run for run in runs if steps in run]
         curve_means = [float(np.mean([score for step, score in run.items() if step <= steps])) for run in finished]
-        row["curve_mean"], row["curve_std"] = _mean_and_std(curve_means)
+        row["curve_mean"], row["curve_std"] = mean_and_std(curve_means)
         row["curve_seeds"] = len(finished)
         profiles = [(seed, run_profile(run, steps, threshold)) for seed, run in seeded_runs]
         row["runs"] = [{"seed": seed, **profile} for seed, profile in profiles if profile is not None]

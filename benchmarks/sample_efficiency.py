@@ -178,7 +178,7 @@ def window_mean(scores: dict[int, float], step: int, window: int) -> float:
     return float(np.mean([score for at, score in scores.items() if step - window < at <= step]))
 
 
-def _mean_std(values: list[float]) -> tuple[float | None, float | None]:
+def mean_and_std(values: list[float]) -> tuple[float | None, float | None]:
     """Mean and standard deviation rounded to 0.1, or (None, None) for no values."""
     if not values:
         return None, None
@@ -194,8 +194,8 @@ def summarize(args: argparse.Namespace, all_scores: RunScores) -> list[dict]:
             runs = [all_scores[env, method, seed] for seed in args.seeds]
             for step in args.at:
                 finished = [run for run in runs if step in run]
-                mean, std = _mean_std([run[step] for run in finished])
-                window, window_std = _mean_std([window_mean(run, step, args.window) for run in finished])
+                mean, std = mean_and_std([run[step] for run in finished])
+                window, window_std = mean_and_std([window_mean(run, step, args.window) for run in finished])
                 table.append(
                     {
                         "env": env,

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import tempfile
+from pathlib import Path
 
 # Share compiled XLA programs between the many small runs (and subprocesses) of the test suite.
 os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", os.path.join(tempfile.gettempdir(), "rankgame-test-jax-cache"))
@@ -113,3 +115,29 @@ def assert_one_line_error(result: subprocess.CompletedProcess[str], fragment: st
     assert len(lines) == 1, result.stderr
     assert lines[0].startswith("rankgame") and fragment in lines[0], lines[0]
     assert "Traceback" not in result.stderr
+
+
+def assert_missing_package_is_one_line_error(
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    out: Path,
+    env_id: str,
+    package: str,
+    extra: str,
+    named: str,
+) -> None:
+    """With ``package`` unimportable, making ``env_id`` raises an error naming the ``extra`` to install,
+    and ``rankgame expert`` on it ends with one line of stderr naming ``named``, a non-zero exit and nothing written."""
+    from rankgame.cli import main
+    from rankgame.envs.make import make_env
+    from rankgame.errors import RankGameError
+
+    for name in [m for m in sys.modules if m == package or m.startswith(package + ".")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, package, None)  # makes the import fail
+    with pytest.raises(RankGameError, match=re.escape(f"pip install 'rankgame[{extra}]'")):
+        make_env(env_id)
+    assert main(["expert", "--env", env_id, "--steps", "1000", "--no-progress", "--out", str(out)]) != 0
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and named in err
+    assert not out.exists()  # nothing written

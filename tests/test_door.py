@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import assert_missing_package_is_one_line_error
 
-from rankgame.cli import main
 from rankgame.envs.make import env_spec, make_env
 from rankgame.envs.manipulation import DOOR_ID
-from rankgame.errors import RankGameError
 
 pytest.importorskip("robosuite")  # part of the test extra; this guards partial installs
 
@@ -58,10 +56,6 @@ def test_an_episode_runs_the_full_horizon_and_reports_success(door) -> None:
 def test_without_robosuite_the_error_says_what_to_install(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    monkeypatch.setitem(sys.modules, "robosuite", None)  # makes the import fail
-    with pytest.raises(RankGameError, match=r"pip install 'rankgame\[door\]'"):
-        make_env(DOOR_ID)
-    assert main(["expert", "--env", DOOR_ID, "--steps", "1000", "--no-progress", "--out", str(tmp_path / "run")]) != 0
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "robosuite" in err
-    assert not (tmp_path / "run").exists()
+    assert_missing_package_is_one_line_error(
+        monkeypatch, capsys, tmp_path / "run", DOOR_ID, "robosuite", "door", "robosuite"
+    )

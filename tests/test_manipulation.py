@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import assert_missing_package_is_one_line_error
 
-from rankgame.cli import main
 from rankgame.envs.make import env_spec, make_env
 from rankgame.envs.manipulation import PEN_DROP_HEIGHT, PEN_HEIGHT_INDEX, PEN_ID
-from rankgame.errors import RankGameError
 
 pytest.importorskip("gymnasium_robotics")  # part of the test extra; this guards partial installs
 
@@ -43,15 +41,9 @@ def test_an_episode_ends_when_the_pen_falls_and_not_before() -> None:
 def test_without_gymnasium_robotics_the_error_says_what_to_install(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    for name in [m for m in sys.modules if m.startswith("gymnasium_robotics")]:
-        monkeypatch.delitem(sys.modules, name)
-    monkeypatch.setitem(sys.modules, "gymnasium_robotics", None)  # makes the import fail
-    with pytest.raises(RankGameError, match=r"pip install 'rankgame\[manipulation\]'"):
-        make_env(PEN_ID)
-    assert main(["expert", "--env", PEN_ID, "--steps", "1000", "--no-progress", "--out", str(tmp_path / "run")]) != 0
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "Gymnasium-Robotics" in err
-    assert not (tmp_path / "run").exists()  # nothing written
+    assert_missing_package_is_one_line_error(
+        monkeypatch, capsys, tmp_path / "run", PEN_ID, "gymnasium_robotics", "manipulation", "Gymnasium-Robotics"
+    )
 
 
 def test_pen_evaluations_report_a_success_rate(tmp_path: Path) -> None:
