@@ -15,7 +15,11 @@ evaluations in the second half of the run.
         python benchmarks/ablations.py rankings --envs Hopper-v5 --seeds 0 1 2 --steps 100000 --cores 0 1
     python benchmarks/ablations.py rankings --envs Hopper-v5 --steps 100000 --summarize-only --plot rankings.png
 
-Not covered: the Pen and Door tasks (the paper's preference-noise ablation uses Door).
+On Pen and Door, ``--metric success`` summarizes the success rate (percent of evaluation episodes)
+instead of the normalized score, and ``--train-args`` adds options to every variant:
+
+    python benchmarks/ablations.py preference-noise --envs rankgame/Door-v0 --seeds 0 --steps 100000 \
+        --at 50000 100000 --train-args "--preset modern" --metric success --threshold 80
 """
 
 from __future__ import annotations
@@ -28,7 +32,9 @@ from pathlib import Path
 
 import numpy as np
 from sample_efficiency import (
+    METRICS,
     Job,
+    env_folder_name,
     first_step_text,
     logged_folder,
     mean_and_std,
@@ -165,10 +171,17 @@ ABLATIONS: dict[str, Ablation] = {
 
 
 def ablation_jobs(
-    name: str, envs: list[str], seeds: list[int], root: Path, archive: Path, labels: list[str] | None = None
+    name: str,
+    envs: list[str],
+    seeds: list[int],
+    root: Path,
+    archive: Path,
+    labels: list[str] | None = None,
+    common_args: str = "",
 ) -> list[tuple[Variant, Job]]:
     """Every (variant, env, seed) run of an ablation, variant by variant (only the variants named in
-    ``labels`` if given; an unknown label raises ``ValueError``)."""
+    ``labels`` if given; an unknown label raises ``ValueError``); ``common_args`` are options of every
+    run, placed before the variant's own."""
     variants = ABLATIONS[name].variants
     if labels is not None:
         unknown = sorted(set(labels) - {variant.label for variant in variants})
@@ -179,12 +192,12 @@ def ablation_jobs(
         (
             variant,
             Job(
-                root / name / variant.label / f"{env}__s{seed}",
-                archive / name / variant.label / f"{env}__s{seed}",
+                root / name / variant.label / f"{env_folder_name(env)}__s{seed}",
+                archive / name / variant.label / f"{env_folder_name(env)}__s{seed}",
                 env,
                 variant.method,
                 seed,
-                variant.train_args,
+                f"{common_args} {variant.train_args}".strip(),
             ),
         )
         for variant in variants
@@ -193,14 +206,17 @@ def ablation_jobs(
     ]
 
 
-def summarize(jobs: list[tuple[Variant, Job]], at: list[int], steps: int, threshold: float = 80.0) -> list[dict]:
-    """One row per (env, variant): over seeds, the mean and standard deviation of the normalized score
-    at each step of ``at`` and of each run's mean over all its evaluations up to ``steps`` (the area
-    under its learning curve, steadier than any single evaluation; only runs that reached ``steps``),
+def summarize(
+    jobs: list[tuple[Variant, Job]], at: list[int], steps: int, threshold: float = 80.0, metric: str = "normalized"
+) -> list[dict]:
+    """One row per (env, variant): over seeds, the mean and standard deviation of the score (``metric``
+    of :func:`read_scores`) at each step of ``at`` and of each run's mean over all its evaluations up to
+    ``steps`` (the area under its learning curve, steadier than any single evaluation; only runs that
+    reached ``steps``),
     and under ``runs`` the :func:`run_profile` of each run that reached ``steps``, with its seed."""
     groups: dict[tuple[str, str], list[tuple[int, dict[int, float]]]] = {}
     for variant, job in jobs:
-        groups.setdefault((job.env, variant.label), []).append((job.seed, read_scores(job.out, job.archived)))
+        groups.setdefault((job.env, variant.label), []).append((job.seed, read_scores(job.out, job.archived, metric)))
     rows = []
     for (env, label), seeded_runs in groups.items():
         runs = [run for _, run in seeded_runs]
@@ -284,6 +300,18 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=300_000)
     parser.add_argument("--at", nargs="+", type=int, default=[100_000, 300_000])
     parser.add_argument("--threshold", type=float, default=80.0, help="score whose first crossing is reported")
+    parser.add_argument(
+        "--metric",
+        choices=list(METRICS),
+        default="normalized",
+        help="what to summarize: the normalized score, or the success rate in percent (Pen, Door)",
+    )
+    parser.add_argument(
+        "--train-args",
+        default="",
+        help="options for every run, before the variant's own, e.g. '--preset modern'; write "
+        "--train-args=--sac.learn-alpha (with '=') when the value is a single word starting with '-'",
+    )
     parser.add_argument("--root", type=Path, default=Path("runs/ablations"))
     parser.add_argument("--archive", type=Path, default=Path("benchmarks/results/ablations"))
     parser.add_argument("--cores", nargs="+", default=["0", "1"], help="CPU cores to pin one run each to")
@@ -300,7 +328,9 @@ def main() -> None:
     if args.ablation is None:
         parser.error("name an ablation (see --list)")
     try:
-        jobs = ablation_jobs(args.ablation, args.envs, args.seeds, args.root, args.archive, args.variants)
+        jobs = ablation_jobs(
+            args.ablation, args.envs, args.seeds, args.root, args.archive, args.variants, args.train_args
+        )
     except ValueError as exc:
         parser.error(str(exc))
     if args.dry_run:
@@ -310,9 +340,10 @@ def main() -> None:
         return
     if not args.summarize_only:
         run_jobs([job for _, job in jobs], args.steps, args.cores)
-    rows = summarize(jobs, args.at, args.steps, args.threshold)
-    print(json.dumps({"ablation": args.ablation, "steps": args.steps, "variants": rows}))
-    print("\nnormalized score, mean ± standard deviation (seeds)\n")
+    rows = summarize(jobs, args.at, args.steps, args.threshold, args.metric)
+    print(json.dumps({"ablation": args.ablation, "steps": args.steps, "metric": args.metric, "variants": rows}))
+    measure = "normalized score" if args.metric == "normalized" else "success rate (%)"
+    print(f"\n{measure}, mean ± standard deviation (seeds)\n")
     print(markdown_table(rows, args.at, args.steps))
     print()
     print(per_seed_table(rows, args.steps, args.threshold))

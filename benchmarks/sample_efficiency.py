@@ -62,8 +62,13 @@ PUBLISHED = {
 }
 
 
+def env_folder_name(env: str) -> str:
+    """``env`` as one folder name: ``rankgame/Door-v0`` becomes ``rankgame__Door-v0``."""
+    return env.replace("/", "__")
+
+
 def run_dir(root: Path, env: str, method: str, seed: int) -> Path:
-    return root / f"{env}__{method}__s{seed}"
+    return root / f"{env_folder_name(env)}__{method}__s{seed}"
 
 
 def archive_if_finished(out: Path, archived: Path) -> None:
@@ -149,13 +154,19 @@ def logged_folder(out: Path, archived: Path) -> Path | None:
     return next((folder for folder in (out, archived) if (folder / "metrics.csv").exists()), None)
 
 
-def read_scores(out: Path, archived: Path) -> dict[int, float]:
-    """Normalized score by evaluation step of a run (its folder, else its archived copy); empty if none."""
+#: Scores a summary can read from ``metrics.csv``: name -> (column, factor to the reported scale).
+METRICS: dict[str, tuple[str, float]] = {"normalized": ("normalized_score", 1.0), "success": ("eval_success", 100.0)}
+
+
+def read_scores(out: Path, archived: Path, metric: str = "normalized") -> dict[int, float]:
+    """A run's score by evaluation step (its folder, else its archived copy; empty if neither): the
+    normalized score, or with ``metric="success"`` the share of successful evaluation episodes in percent."""
     folder = logged_folder(out, archived)
     if folder is None:
         return {}
+    column, factor = METRICS[metric]
     with (folder / "metrics.csv").open() as handle:
-        return {int(row["env_steps"]): float(row["normalized_score"]) for row in csv.DictReader(handle)}
+        return {int(row["env_steps"]): factor * float(row[column]) for row in csv.DictReader(handle)}
 
 
 RunScores = dict[tuple[str, str, int], dict[int, float]]

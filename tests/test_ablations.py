@@ -110,3 +110,30 @@ def test_per_seed_table_lists_each_finished_run_in_seed_order(tmp_path: Path) ->
     assert table[0] == "| env | variant | first step at >= 80, per seed | median / min / max over 2k-4k, per seed |"
     assert table[2] == "| Hopper-v5 | auto | 2k, never | 85.0 / 20.0 / 90.0, 40.0 / 30.0 / 50.0 |"
     assert table[3] == "| Hopper-v5 | vanilla | - | - |"
+
+
+def test_common_options_and_a_namespaced_env(tmp_path: Path) -> None:
+    jobs = ablation_jobs(
+        "preference-noise",
+        ["rankgame/Door-v0"],
+        [3],
+        tmp_path / "runs",
+        tmp_path / "archive",
+        ["noise-0.2"],
+        "--preset modern",
+    )
+    [(_, job)] = jobs
+    assert job.out == tmp_path / "runs" / "preference-noise" / "noise-0.2" / "rankgame__Door-v0__s3"
+    assert job.train_args == "--preset modern --pref-noise 0.2"  # the variant's own options come last
+
+
+def test_success_metric_is_the_success_rate_in_percent(tmp_path: Path) -> None:
+    jobs = ablation_jobs("preference-noise", ["rankgame/Door-v0"], [0], tmp_path, tmp_path, ["noise-0"])
+    [(_, job)] = jobs
+    job.archived.mkdir(parents=True)
+    (job.archived / "metrics.csv").write_text("env_steps,normalized_score,eval_success\n1000,12.5,0.4\n2000,50,1\n")
+    [row] = summarize(jobs, [1000, 2000], steps=2000, metric="success")
+    assert [point["mean"] for point in row["at"]] == [40.0, 100.0]
+    assert row["curve_mean"] == 70.0
+    [row] = summarize(jobs, [1000], steps=2000)
+    assert row["at"][0]["mean"] == 12.5
