@@ -4,9 +4,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from rankgame.checkpoint import CHECKPOINT_NAME, RUN_CONTROL_OPTIONS, checkpoint_to_resume, require_same_settings
+from rankgame.checkpoint import (
+    CHECKPOINT_NAME,
+    RUN_CONTROL_OPTIONS,
+    checkpoint_to_resume,
+    load_run_checkpoint,
+    require_same_settings,
+    save_checkpoint,
+)
 from rankgame.errors import RankGameError
 
 
@@ -57,3 +65,10 @@ def test_an_option_added_after_the_checkpoint_is_accepted_at_its_default() -> No
         require_same_settings(saved, {**same, "reward": {"lr": 1e-3, "ral_passes": 6.0}}, RUN_CONTROL_OPTIONS, defaults)
     with pytest.raises(RankGameError, match=r"differs from the checkpoint.s \(not given\)"):  # no defaults
         require_same_settings(saved, same, RUN_CONTROL_OPTIONS)
+
+
+def test_a_checkpoint_of_something_else_is_refused_in_one_line(tmp_path: Path) -> None:
+    path = tmp_path / CHECKPOINT_NAME
+    save_checkpoint(path, {"note": "not a run"}, {"weights": np.zeros(2)})
+    with pytest.raises(RankGameError, match="not a checkpoint of a rankgame run"):
+        load_run_checkpoint(path, {}, {}, steps=1000)

@@ -44,3 +44,37 @@ def test_an_existing_log_keeps_its_own_column_order(tmp_path: Path) -> None:
     logger.log({"env_steps": 2000, "eval_return": 2.0})
     logger.close()
     assert (tmp_path / "metrics.csv").read_text().splitlines() == ["eval_return,env_steps", "1,1000", "2,2000"]
+
+
+def _tensorboard_scalars(tb_dir: Path, tag: str) -> list[tuple[int, float]]:
+    """The (step, value) points TensorBoard shows for ``tag``: the event files are read in the order they
+    were written, and a session start at step P hides the earlier events at steps >= P (its purge rule)."""
+    from tensorboardX.proto.event_pb2 import Event, SessionLog
+
+    points: list[tuple[int, float]] = []
+    for path in sorted(tb_dir.glob("events.out.tfevents.*"), key=lambda p: p.stat().st_mtime_ns):
+        data = path.read_bytes()
+        offset = 0
+        while offset < len(data):  # TFRecord framing: length (8 bytes), its CRC (4), payload, CRC (4)
+            length = int.from_bytes(data[offset : offset + 8], "little")
+            event = Event.FromString(data[offset + 12 : offset + 12 + length])
+            offset += 12 + length + 4
+            if event.HasField("session_log") and event.session_log.status == SessionLog.START:
+                points = [(step, value) for step, value in points if step < event.step]
+            for value in event.summary.value:
+                if value.tag == tag:
+                    points.append((event.step, value.simple_value))
+    return points
+
+
+def test_resume_keeps_every_tensorboard_point_once(tmp_path: Path) -> None:
+    first = RunLogger(tmp_path, ["env_steps", "eval_return"])
+    for step in (1000, 2000, 3000):  # killed after logging 3000; its checkpoint was at 2000
+        first.log({"env_steps": step, "eval_return": step / 1000})
+    first.close()
+    for path in (tmp_path / "tb").iterdir():  # event files are named by the second they start in
+        path.rename(path.with_name(path.name + ".first"))
+    resumed = RunLogger(tmp_path, ["env_steps", "eval_return"], resume_step=2000)
+    resumed.log({"env_steps": 3000, "eval_return": 3.5})
+    resumed.close()
+    assert _tensorboard_scalars(tmp_path / "tb", "eval_return") == [(1000, 1.0), (2000, 2.0), (3000, 3.5)]

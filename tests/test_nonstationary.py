@@ -16,6 +16,7 @@ from rankgame.envs.make import env_spec, make_env
 from rankgame.envs.toy import POINT_GOAL_ID, POINT_GOAL_MIRRORED_ID
 from rankgame.envs.variants import HEAVY_MASS_SCALE, HOPPER_BACKWARD_ID, HOPPER_HEAVY_ID
 from rankgame.game.loop import RankingGame, TrainConfig
+from rankgame.policy.io import load_policy
 from rankgame.policy.sac import SACConfig
 from rankgame.reward.player import RewardConfig
 
@@ -103,6 +104,7 @@ def test_the_game_follows_a_changed_intent(
     assert scores[2000] > 70.0, scores  # the first expert imitated
     # The new expert imitated: a policy that still walked to the old goal would score far below 0 here.
     assert scores[4000] > 70.0, scores
+    assert load_policy(out / "policy.msgpack").env_id == POINT_GOAL_MIRRORED_ID  # evaluated where it ended
 
 
 def test_bad_switch_settings_give_one_line_errors(

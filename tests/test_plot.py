@@ -72,3 +72,15 @@ def test_max_steps_ends_every_curve_there(tmp_path: Path) -> None:
         run_cli("plot", str(long), "--max-steps", "500"), "no value of 'normalized_score' at or below 500"
     )
     assert_one_line_error(run_cli("plot", str(long), "--max-steps", "0"), "--max-steps must be positive (got 0)")
+
+
+def test_a_metrics_file_without_steps_or_with_text_is_a_one_line_error(tmp_path: Path) -> None:
+    no_steps, text = tmp_path / "no_steps", tmp_path / "text"
+    for run, content in (
+        (no_steps, "step,normalized_score\n1000,1\n"),
+        (text, "env_steps,normalized_score\n1000,high\n"),
+    ):
+        run.mkdir()
+        (run / "metrics.csv").write_text(content)
+    assert_one_line_error(run_cli("plot", str(no_steps)), "has no column 'env_steps'")
+    assert_one_line_error(run_cli("plot", str(text)), "line 2: env_steps and normalized_score must be numbers")

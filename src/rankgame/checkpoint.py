@@ -125,6 +125,8 @@ def load_run_checkpoint(
     see :func:`require_same_settings`.
     """
     metadata, arrays = load_checkpoint(path)
+    if not isinstance(metadata, dict) or not {"config", "env_steps"} <= metadata.keys():
+        raise RankGameError(f"{path}: not a checkpoint of a rankgame run (no config or step count)")
     require_same_settings(metadata["config"], config, RUN_CONTROL_OPTIONS, defaults)
     if steps < int(metadata["env_steps"]):
         raise RankGameError(f"--steps {steps} is below the checkpoint's {metadata['env_steps']} steps")

@@ -18,7 +18,8 @@ class RunLogger:
     appended: :func:`extend_header`); a row may leave some empty. Rows are flushed as they
     are written, so a killed run leaves only whole rows behind. ``resume_step`` continues a run from
     its checkpoint at that step: CSV rows after it are dropped (they will be logged again) and
-    TensorBoard purges its events after it, so no row is duplicated or missing.
+    TensorBoard hides the earlier events after it (a purge from ``resume_step + 1``: the checkpoint's
+    own step was logged before it was saved), so no row is duplicated or missing.
     """
 
     def __init__(
@@ -44,7 +45,8 @@ class RunLogger:
         if tensorboard:
             from tensorboardX import SummaryWriter
 
-            self._tb = SummaryWriter(str(Path(out_dir) / "tb"), purge_step=resume_step)
+            purge_step = None if resume_step is None else resume_step + 1
+            self._tb = SummaryWriter(str(Path(out_dir) / "tb"), purge_step=purge_step)
 
     def log(self, row: Mapping[str, float | int]) -> None:
         """Write one row; keys outside the columns go to TensorBoard only."""

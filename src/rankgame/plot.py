@@ -31,12 +31,19 @@ def read_curve(run: Path, column: str, max_steps: int | None = None) -> tuple[li
     steps, values = [], []
     with path.open(newline="") as handle:
         reader = csv.DictReader(handle)
-        if column not in (reader.fieldnames or []):
-            raise RankGameError(f"{path} has no column {column!r} (columns: {', '.join(reader.fieldnames or [])})")
-        for row in reader:
-            if row.get(column) and (max_steps is None or int(row["env_steps"]) <= max_steps):
-                steps.append(int(row["env_steps"]))
-                values.append(float(row[column]))
+        for needed in ("env_steps", column):
+            if needed not in (reader.fieldnames or []):
+                raise RankGameError(f"{path} has no column {needed!r} (columns: {', '.join(reader.fieldnames or [])})")
+        for line, row in enumerate(reader, start=2):
+            if not row.get(column):
+                continue
+            try:
+                step, value = int(row["env_steps"]), float(row[column])
+            except (TypeError, ValueError):
+                raise RankGameError(f"{path}, line {line}: env_steps and {column} must be numbers") from None
+            if max_steps is None or step <= max_steps:
+                steps.append(step)
+                values.append(value)
     if not steps:
         past = "" if max_steps is None else f" at or below {max_steps} steps"
         raise RankGameError(f"{path} has no value of {column!r}{past}")

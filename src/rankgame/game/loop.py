@@ -107,12 +107,13 @@ class TrainConfig:
     schedule: Schedule = "exp"
     """Targets of the auto mixtures: linear or exp."""
     beta: float = -1.0
-    """Temperature of the exp schedule (the paper uses -1; -2 for Ant)."""
+    """Temperature of the exp schedule (Table 4: -1; the authors' Ant configuration uses -2)."""
     termination: Literal["absorbing", "done"] = "absorbing"
     """How SAC treats an early-terminated episode: absorbing (DAC-style absorbing state whose value
     follows the learned reward) or done (a terminal mask: ending is worth 0, as in the authors' code)."""
     interpolations: int = 4
-    """Interior mixtures between agent and expert (auto rankings): 4 gives lambda = 0, 0.2, ..., 1."""
+    """Interior mixtures between agent and expert (auto rankings): 4 gives lambda = 0, 0.2, ..., 1, the
+    grid of the authors' code (Table 4's "5 interpolations" counts its five steps)."""
     mixup: Literal["trajectory", "state"] = "trajectory"
     """How the auto rankings pair agent and expert states: trajectory (time-aligned, the paper's
     method) or state (an expert state from a random time step, the regularizer ablation's baseline)."""
@@ -544,18 +545,19 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
         bar.close()
         logger.close()
     params = jax.device_get(game.learner.state.actor_params)
+    final_env = cfg.switch_env or cfg.env  # a --switch-env (at a step before --steps) is where the policy ends
     save_policy(
         out / "policy.msgpack",
         game.learner.sac,
         params,
-        cfg.env,
+        final_env,
         spec.act_low,
         spec.act_high,
         command=command,
         absorbing_flag=True,
     )
     return {
-        "env": cfg.env,
+        "env": final_env,
         "method": cfg.method,
         "steps": cfg.steps,
         **last_eval,

@@ -61,7 +61,8 @@ class SACConfig:
     target_entropy: float | None = None
     """Target policy entropy for the learned temperature; default -act_dim."""
     start_steps: int = 1000
-    """Environment steps with uniformly random actions before the policy acts."""
+    """Environment steps with uniformly random actions before the policy acts (SpinningUp's default is
+    10000; 1000 is the one random episode of the authors' configurations)."""
     update_after: int = 1000
     """Environment steps before the first gradient step."""
     update_every: int = 50

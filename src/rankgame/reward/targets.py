@@ -40,7 +40,8 @@ def lambda_grid(n_interpolations: int) -> np.ndarray:
     """Evenly spaced mixture weights ``(n_interpolations + 2,)`` from 0 to 1, both ends included.
 
     The default, 4 interior mixtures, gives ``0, 0.2, ..., 1``: five equal steps from the agent to the
-    expert (the paper's Table 4 lists 5 interpolations).
+    expert. This is the grid of the authors' code; we read Table 4's "5 interpolations" as these five
+    steps, while App. B's notation would count the P interior mixtures (4 here).
     """
     if n_interpolations < 0:
         raise ValueError("the number of interpolations must be >= 0")
