@@ -18,7 +18,7 @@ evaluations in the second half of the run.
 On Pen and Door, ``--metric success`` summarizes the success rate (percent of evaluation episodes)
 instead of the normalized score, and ``--train-args`` adds options to every variant:
 
-    python benchmarks/ablations.py preference-noise --envs rankgame/Door-v0 --seeds 0 --steps 100000 \
+    python benchmarks/ablations.py preference-noise --envs rankgame/Door-v0 --seeds 0 --steps 100000 \\
         --at 50000 100000 --train-args "--preset modern" --metric success --threshold 80
 """
 
@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 from sample_efficiency import (
     METRICS,
+    TRAIN_ARGS_NOTE,
     Job,
     env_folder_name,
     first_step_text,
@@ -212,8 +213,8 @@ def summarize(
     """One row per (env, variant): over seeds, the mean and standard deviation of the score (``metric``
     of :func:`read_scores`) at each step of ``at`` and of each run's mean over all its evaluations up to
     ``steps`` (the area under its learning curve, steadier than any single evaluation; only runs that
-    reached ``steps``),
-    and under ``runs`` the :func:`run_profile` of each run that reached ``steps``, with its seed."""
+    reached ``steps``), and under ``runs`` the :func:`run_profile` of each run that reached ``steps``,
+    with its seed."""
     groups: dict[tuple[str, str], list[tuple[int, dict[int, float]]]] = {}
     for variant, job in jobs:
         groups.setdefault((job.env, variant.label), []).append((job.seed, read_scores(job.out, job.archived, metric)))
@@ -309,8 +310,7 @@ def main() -> None:
     parser.add_argument(
         "--train-args",
         default="",
-        help="options for every run, before the variant's own, e.g. '--preset modern'; write "
-        "--train-args=--sac.learn-alpha (with '=') when the value is a single word starting with '-'",
+        help=f"options for every run, before the variant's own, e.g. '--preset modern'; {TRAIN_ARGS_NOTE}",
     )
     parser.add_argument("--root", type=Path, default=Path("runs/ablations"))
     parser.add_argument("--archive", type=Path, default=Path("benchmarks/results/ablations"))

@@ -62,6 +62,10 @@ PUBLISHED = {
 }
 
 
+#: How to pass ``--train-args`` a value that argparse would take for an option of its own.
+TRAIN_ARGS_NOTE = "write --train-args=--sac.learn-alpha (with '=') when the value is a single word starting with '-'"
+
+
 def env_folder_name(env: str) -> str:
     """``env`` as one folder name: ``rankgame/Door-v0`` becomes ``rankgame__Door-v0``."""
     return env.replace("/", "__")
@@ -278,8 +282,7 @@ def main() -> None:
     parser.add_argument(
         "--train-args",
         default="",
-        help="further options for every `rankgame train`, e.g. '--reward.lr 1e-4'; write "
-        "--train-args=--sac.learn-alpha (with '=') when the value is a single word starting with '-'",
+        help=f"further options for every `rankgame train`, e.g. '--reward.lr 1e-4'; {TRAIN_ARGS_NOTE}",
     )
     parser.add_argument("--summarize-only", action="store_true")
     args = parser.parse_args()
