@@ -342,8 +342,7 @@ def main() -> None:
         run_jobs([job for _, job in jobs], args.steps, args.cores)
     rows = summarize(jobs, args.at, args.steps, args.threshold, args.metric)
     print(json.dumps({"ablation": args.ablation, "steps": args.steps, "metric": args.metric, "variants": rows}))
-    measure = "normalized score" if args.metric == "normalized" else "success rate (%)"
-    print(f"\n{measure}, mean ± standard deviation (seeds)\n")
+    print(f"\n{METRICS[args.metric].label}, mean ± standard deviation (seeds)\n")
     print(markdown_table(rows, args.at, args.steps))
     print()
     print(per_seed_table(rows, args.steps, args.threshold))

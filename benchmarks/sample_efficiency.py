@@ -34,6 +34,7 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -158,8 +159,20 @@ def logged_folder(out: Path, archived: Path) -> Path | None:
     return next((folder for folder in (out, archived) if (folder / "metrics.csv").exists()), None)
 
 
-#: Scores a summary can read from ``metrics.csv``: name -> (column, factor to the reported scale).
-METRICS: dict[str, tuple[str, float]] = {"normalized": ("normalized_score", 1.0), "success": ("eval_success", 100.0)}
+class Metric(NamedTuple):
+    """A score a summary can read from ``metrics.csv``: its column, the factor to the reported scale, and
+    how tables name it."""
+
+    column: str
+    factor: float
+    label: str
+
+
+#: The scores a summary can read, by name.
+METRICS: dict[str, Metric] = {
+    "normalized": Metric("normalized_score", 1.0, "normalized score"),
+    "success": Metric("eval_success", 100.0, "success rate (%)"),
+}
 
 
 def read_scores(out: Path, archived: Path, metric: str = "normalized") -> dict[int, float]:
@@ -168,7 +181,7 @@ def read_scores(out: Path, archived: Path, metric: str = "normalized") -> dict[i
     folder = logged_folder(out, archived)
     if folder is None:
         return {}
-    column, factor = METRICS[metric]
+    column, factor, _ = METRICS[metric]
     with (folder / "metrics.csv").open() as handle:
         return {int(row["env_steps"]): factor * float(row[column]) for row in csv.DictReader(handle)}
 
