@@ -285,7 +285,7 @@ def plot_ablation(name: str, jobs: list[tuple[Variant, Job]], steps: int, out: P
                 groups.setdefault(variant.label, []).append(folder)
         if not groups:
             continue
-        figure = out if len(envs) == 1 else out.with_name(f"{out.stem}-{env.replace('/', '__')}{out.suffix}")
+        figure = out if len(envs) == 1 else out.with_name(f"{out.stem}-{env_folder_name(env)}{out.suffix}")
         title = f"{env}: {name} ({ABLATIONS[name].section})"
         figures.append(plot_groups(list(groups.items()), figure, title=title, max_steps=steps))
     return figures
