@@ -16,7 +16,8 @@ evaluations in the second half of the run.
     python benchmarks/ablations.py rankings --envs Hopper-v5 --steps 100000 --summarize-only --plot rankings.png
 
 On Pen and Door, ``--metric success`` summarizes the success rate (percent of evaluation episodes)
-instead of the normalized score, and ``--train-args`` adds options to every variant:
+instead of the normalized score, and ``--plot`` then draws the success rate (share of episodes);
+``--train-args`` adds options to every variant:
 
     python benchmarks/ablations.py preference-noise --envs rankgame/Door-v0 --seeds 0 --steps 100000 \\
         --at 50000 100000 --train-args "--preset modern" --metric success --threshold 80
@@ -269,10 +270,12 @@ def per_seed_table(rows: list[dict], steps: int, threshold: float = 80.0) -> str
     return "\n".join(lines)
 
 
-def plot_ablation(name: str, jobs: list[tuple[Variant, Job]], steps: int, out: Path) -> list[Path]:
-    """Draw, per env, one curve per variant (mean over its seeds, band of one standard deviation) up to
-    ``steps`` into ``out`` (``out`` with ``-ENV`` before its suffix when there are several envs).
-    Each run is read from its folder, else from its archive, like the summary."""
+def plot_ablation(
+    name: str, jobs: list[tuple[Variant, Job]], steps: int, out: Path, metric: str = "normalized"
+) -> list[Path]:
+    """Draw, per env, one curve per variant (mean over its seeds, band of one standard deviation) of the
+    ``metric``'s column up to ``steps`` into ``out`` (``out`` with ``-ENV`` before its suffix when there
+    are several envs). Each run is read from its folder, else from its archive, like the summary."""
     from rankgame.plot import plot_groups
 
     envs = list(dict.fromkeys(job.env for _, job in jobs))
@@ -287,7 +290,8 @@ def plot_ablation(name: str, jobs: list[tuple[Variant, Job]], steps: int, out: P
             continue
         figure = out if len(envs) == 1 else out.with_name(f"{out.stem}-{env_folder_name(env)}{out.suffix}")
         title = f"{env}: {name} ({ABLATIONS[name].section})"
-        figures.append(plot_groups(list(groups.items()), figure, title=title, max_steps=steps))
+        column = METRICS[metric].column
+        figures.append(plot_groups(list(groups.items()), figure, column, title=title, max_steps=steps))
     return figures
 
 
@@ -347,7 +351,7 @@ def main() -> None:
     print()
     print(per_seed_table(rows, args.steps, args.threshold))
     if args.plot is not None:
-        for figure in plot_ablation(args.ablation, jobs, args.steps, args.plot):
+        for figure in plot_ablation(args.ablation, jobs, args.steps, args.plot, args.metric):
             print(f"wrote {figure}")
 
 

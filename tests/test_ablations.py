@@ -57,8 +57,8 @@ def test_plot_draws_one_curve_per_variant_with_runs(tmp_path: Path, monkeypatch:
 
     drawn = {}
 
-    def fake_plot_groups(groups, out, **kwargs):  # noqa: ANN001, ANN003, ANN202
-        drawn[out] = (groups, kwargs)
+    def fake_plot_groups(groups, out, column, **kwargs):  # noqa: ANN001, ANN003, ANN202
+        drawn[out] = (groups, {"column": column, **kwargs})
         return out
 
     monkeypatch.setattr(rankgame.plot, "plot_groups", fake_plot_groups)
@@ -74,7 +74,9 @@ def test_plot_draws_one_curve_per_variant_with_runs(tmp_path: Path, monkeypatch:
     assert [label for label, _ in groups] == ["auto", "vanilla"]
     where = [[run.relative_to(tmp_path).parts[0] for run in runs] for _, runs in groups]
     assert where == [["runs", "archive"], ["runs"]]
-    assert kwargs["max_steps"] == 1000
+    assert kwargs["max_steps"] == 1000 and kwargs["column"] == "normalized_score"
+    [success_figure] = plot_ablation("rankings", jobs, 1000, tmp_path / "success.png", metric="success")
+    assert drawn[success_figure][1]["column"] == "eval_success"
 
 
 def test_variants_can_be_restricted_by_label(tmp_path: Path) -> None:
