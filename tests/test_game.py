@@ -15,14 +15,14 @@ import numpy as np
 import pytest
 from conftest import TOY_TRAIN_ARGS, assert_one_line_error, run_cli
 
-from rankgame.checkpoint import flatten_tree
+from rankgame.checkpoint import flatten_tree, load_checkpoint
 from rankgame.cli import main
 from rankgame.data.trajectories import Trajectory, load_trajectories, save_trajectories
 from rankgame.envs.make import make_env
 from rankgame.envs.rollout import rollout
 from rankgame.envs.toy import POINT_GOAL_EDGE_ID, point_goal_expert
 from rankgame.errors import RankGameError
-from rankgame.game.loop import RankingGame, TrainConfig
+from rankgame.game.loop import FINISHED_KEY, RankingGame, TrainConfig, train
 from rankgame.game.methods import METHODS
 from rankgame.policy.sac import SACConfig
 from rankgame.reward.player import RewardConfig
@@ -139,6 +139,38 @@ def test_a_checkpoint_restores_every_piece_of_the_game(toy_expert_file: Path, tm
         changed.restore(tmp_path / "checkpoint.npz")
     with pytest.raises(RankGameError, match="--reward.batch-size 32 differs"):
         RankingGame(replace(cfg, reward=replace(cfg.reward, batch_size=32))).restore(tmp_path / "checkpoint.npz")
+
+
+def test_a_run_ending_inside_an_iteration_checkpoints_its_last_step(toy_expert_file: Path, tmp_path: Path) -> None:
+    # n_pol = 80 (two toy episodes) and --steps 200: the run ends half way through its third iteration,
+    # holding episodes that the reward player has not ranked yet.
+    cfg = TrainConfig(
+        env="rankgame/PointGoal-v0",
+        method="rank-ral-auto",
+        expert=toy_expert_file,
+        out=tmp_path / "run",
+        steps=200,
+        policy_updates=80,
+        eval_every=100,
+        eval_episodes=1,
+        tensorboard=False,
+        progress=False,
+        sac=replace(SACConfig(), hidden_sizes=(16,), batch_size=32, start_steps=100, update_after=100),
+        reward=replace(RewardConfig(), hidden_sizes=(16,), batch_size=64),
+    )
+    train(cfg)
+    metadata, arrays = load_checkpoint(cfg.out / "checkpoint.npz")
+    pending, n_ranked = arrays[FINISHED_KEY], len(arrays["ranking/agent"])
+    assert metadata["env_steps"] == 200 and pending.shape[0] >= 1 and pending.shape[1] == 40
+    restored = RankingGame(cfg)
+    restored.restore(cfg.out / "checkpoint.npz")
+    np.testing.assert_array_equal(np.stack(restored.finished), pending)
+    # Continued to the iteration's end, RAL ranks the pending episodes after the earlier ones.
+    train(replace(cfg, steps=240, resume=True))
+    metadata, arrays = load_checkpoint(cfg.out / "checkpoint.npz")
+    assert metadata["env_steps"] == 240 and arrays[FINISHED_KEY].shape[0] == 0
+    np.testing.assert_array_equal(arrays["ranking/agent"][n_ranked : n_ranked + len(pending)], pending)
+    assert [int(row["env_steps"]) for row in _rows(cfg.out)] == [100, 200, 240]
 
 
 def _train_cmd(out: Path, expert: Path, *extra: str) -> list[str]:

@@ -134,7 +134,7 @@ class TrainConfig:
     eval_episodes: int = 5
     """Episodes per evaluation."""
     checkpoint_every: int = 20_000
-    """Environment steps between checkpoints (rounded to whole iterations)."""
+    """Environment steps between checkpoints (rounded to whole iterations); the last step always gets one."""
     resume: bool = False
     """Continue the run in OUT from its last checkpoint, or from step 0 if it stopped before its first one."""
     tensorboard: bool = True
@@ -211,6 +211,9 @@ def _eval_postfix(evaluation: dict[str, float]) -> dict[str, str]:
         **success_postfix(evaluation.get("eval_success")),
     }
 
+
+#: Checkpoint array of the episodes finished in the iteration in progress.
+FINISHED_KEY = "game/finished"
 
 LOG_COLUMNS = (
     "env_steps",
@@ -470,8 +473,19 @@ class RankingGame:
             "game_rng": self.rng.bit_generator.state,
             "reward_metrics": self.reward_metrics,
         }
-        arrays = {**learner_arrays, **flatten_tree("reward", self.reward_state), **self.data.state_dict()}
+        arrays = {
+            **learner_arrays,
+            **flatten_tree("reward", self.reward_state),
+            **self.data.state_dict(),
+            FINISHED_KEY: self._finished_array(),
+        }
         save_checkpoint(path, metadata, arrays)
+
+    def _finished_array(self) -> np.ndarray:
+        """This iteration's finished episodes, not yet ranked, as reward inputs ``(n, H, d)``."""
+        if self.finished:
+            return np.stack(self.finished)
+        return np.zeros((0, self.horizon, self.data.dim), np.float32)
 
     def restore(self, path: Path) -> dict[str, Any]:
         metadata, arrays = load_run_checkpoint(
@@ -482,6 +496,9 @@ class RankingGame:
         self.learner.restore(metadata, arrays, seed=self.cfg.seed + int(metadata["env_steps"]))
         self.reward_state = unflatten_tree("reward", arrays, self.reward_state)
         self.data.load_state_dict(arrays)
+        # A checkpoint inside an iteration (a run's last step) holds the episodes it had finished;
+        # one at an iteration's end (and every checkpoint of earlier versions) has none.
+        self.finished = list(arrays.get(FINISHED_KEY, ()))
         self.rng.bit_generator.state = metadata["game_rng"]
         self.reward_metrics = metadata["reward_metrics"]
         return metadata
@@ -538,7 +555,8 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
                     }
                 )
                 bar.set_postfix(_eval_postfix(last_eval))
-            if step % game.n_pol == 0 and (step % cfg.checkpoint_every < game.n_pol or step == cfg.steps):
+            at_iteration_end = step % game.n_pol == 0
+            if (at_iteration_end and step % cfg.checkpoint_every < game.n_pol) or step == cfg.steps:
                 game.save(out / CHECKPOINT_NAME, {"wall_s": time.perf_counter() - start, "eval_s": eval_s})
             bar.update(1)
     finally:
