@@ -31,11 +31,11 @@ import shlex
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 from sample_efficiency import (
     METRICS,
     TRAIN_ARGS_NOTE,
     Job,
+    curve_mean,
     env_folder_name,
     first_step_text,
     logged_folder,
@@ -228,8 +228,7 @@ def summarize(
             mean, std = mean_and_std(scores)
             row["at"].append({"step": step, "seeds": len(scores), "mean": mean, "std": std})
         finished = [run for run in runs if steps in run]
-        curve_means = [float(np.mean([score for step, score in run.items() if step <= steps])) for run in finished]
-        row["curve_mean"], row["curve_std"] = mean_and_std(curve_means)
+        row["curve_mean"], row["curve_std"] = mean_and_std([curve_mean(run, steps) for run in finished])
         row["curve_seeds"] = len(finished)
         profiles = [(seed, run_profile(run, steps, threshold)) for seed, run in seeded_runs]
         row["runs"] = [{"seed": seed, **profile} for seed, profile in profiles if profile is not None]

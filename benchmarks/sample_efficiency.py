@@ -240,10 +240,17 @@ def summarize(args: argparse.Namespace, all_scores: RunScores) -> list[dict]:
     return table
 
 
+def curve_mean(scores: dict[int, float], steps: int) -> float:
+    """Mean of a run's evaluations up to ``steps``: the area under its learning curve, steadier than any
+    single evaluation."""
+    return float(np.mean([score for step, score in scores.items() if step <= steps]))
+
+
 def run_profile(scores: dict[int, float], steps: int, threshold: float) -> dict | None:
     """How a run reached and held the imitation: the first evaluation step whose score reaches
-    ``threshold`` (None if none), and the median, minimum and maximum of the evaluations in the second
-    half of the run (how steady it stays); read up to ``steps``. None for a run that has not reached ``steps``."""
+    ``threshold`` (None if none), the median, minimum and maximum of the evaluations in the second
+    half of the run (how steady it stays) and the :func:`curve_mean`; read up to ``steps``. None for a
+    run that has not reached ``steps``."""
     if max(scores, default=0) < steps:
         return None
     within = {step: score for step, score in sorted(scores.items()) if step <= steps}
@@ -254,6 +261,7 @@ def run_profile(scores: dict[int, float], steps: int, threshold: float) -> dict 
         "late_median": round(float(np.median(late)), 1),
         "late_min": round(min(late), 1),
         "late_max": round(max(late), 1),
+        "curve_mean": round(curve_mean(scores, steps), 1),
     }
 
 
@@ -315,10 +323,16 @@ def main() -> None:
             f"{row['published'] or '-'} |"
         )
     half = f"{args.steps // 2000}k-{args.steps // 1000}k"
-    print(f"\n| env | method | seed | first step at >= {args.threshold:g} | median / min / max over {half} |")
-    print("| --- | --- | --- | --- | --- |")
+    print(
+        f"\n| env | method | seed | first step at >= {args.threshold:g} | median / min / max over {half} "
+        f"| mean of the evaluations to {args.steps // 1000}k |"
+    )
+    print("| --- | --- | --- | --- | --- | --- |")
     for row in runs:
-        print(f"| {row['env']} | {row['method']} | {row['seed']} | {first_step_text(row)} | {spread_text(row)} |")
+        print(
+            f"| {row['env']} | {row['method']} | {row['seed']} | {first_step_text(row)} | {spread_text(row)} "
+            f"| {row['curve_mean']} |"
+        )
 
 
 if __name__ == "__main__":

@@ -104,8 +104,22 @@ def test_per_seed_table_lists_each_finished_run_in_seed_order(tmp_path: Path) ->
             (job.archived / "metrics.csv").write_text("env_steps,normalized_score\n" + curves[variant.label, job.seed])
     rows = summarize(jobs, [4000], steps=4000)
     assert rows[0]["runs"] == [
-        {"seed": 0, "first_step_at_threshold": 2000, "late_median": 85.0, "late_min": 20.0, "late_max": 90.0},
-        {"seed": 1, "first_step_at_threshold": None, "late_median": 40.0, "late_min": 30.0, "late_max": 50.0},
+        {
+            "seed": 0,
+            "first_step_at_threshold": 2000,
+            "late_median": 85.0,
+            "late_min": 20.0,
+            "late_max": 90.0,
+            "curve_mean": 51.2,  # (10 + 90 + 20 + 85) / 4 = 51.25, rounded half to even
+        },
+        {
+            "seed": 1,
+            "first_step_at_threshold": None,
+            "late_median": 40.0,
+            "late_min": 30.0,
+            "late_max": 50.0,
+            "curve_mean": 31.2,  # (5 + 30 + 40 + 50) / 4 = 31.25
+        },
     ]
     assert rows[1]["runs"] == []
     table = per_seed_table(rows, steps=4000).splitlines()

@@ -8,7 +8,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
-from sample_efficiency import summarize, window_mean  # noqa: E402
+from sample_efficiency import run_profile, summarize, window_mean  # noqa: E402
 
 
 def test_window_mean_averages_the_evaluations_up_to_the_step() -> None:
@@ -30,3 +30,16 @@ def test_summary_gives_the_point_and_the_window_over_seeds() -> None:
     assert (row["seeds"], row["mean"], row["std"]) == (2, 60.0, 20.0)
     assert (row["window_mean"], row["window_std"]) == (50.0, 20.0)  # seeds' windows: 30 and 70
     assert row["published"] == 86
+
+
+def test_a_run_profile_reads_the_run_up_to_its_length() -> None:
+    scores = {10_000: 10.0, 20_000: 90.0, 30_000: 20.0, 40_000: 100.0, 50_000: 0.0}
+    profile = run_profile(scores, 40_000, threshold=80.0)
+    assert profile == {
+        "first_step_at_threshold": 20_000,
+        "late_median": 90.0,  # 20k, 30k and 40k: the second half of 40k steps
+        "late_min": 20.0,
+        "late_max": 100.0,
+        "curve_mean": 55.0,  # (10 + 90 + 20 + 100) / 4; the evaluation at 50k lies beyond the run's length
+    }
+    assert run_profile(scores, 60_000, threshold=80.0) is None  # not yet that long
