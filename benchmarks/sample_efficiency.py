@@ -76,9 +76,18 @@ def run_dir(root: Path, env: str, method: str, seed: int) -> Path:
     return root / f"{env_folder_name(env)}__{method}__s{seed}"
 
 
-def archive_if_finished(out: Path, archived: Path) -> None:
-    """Copy the ``metrics.csv`` and ``config.json`` of a run that wrote its final policy to ``archived``."""
-    if (out / "policy.msgpack").exists() and not (archived / "metrics.csv").exists():
+def last_logged_step(out: Path) -> int:
+    """The last ``env_steps`` in ``out/metrics.csv`` (0 if it has no rows)."""
+    with (out / "metrics.csv").open() as handle:
+        steps = [int(float(row["env_steps"])) for row in csv.DictReader(handle)]
+    return max(steps, default=0)
+
+
+def archive_if_finished(out: Path, archived: Path, steps: int) -> None:
+    """Copy the ``metrics.csv`` and ``config.json`` of a run that wrote its final policy after ``steps``
+    environment steps to ``archived`` (a shorter run is continued by :func:`run_jobs`, not archived)."""
+    finished = (out / "policy.msgpack").exists() and last_logged_step(out) >= steps
+    if finished and not (archived / "metrics.csv").exists():
         archived.mkdir(parents=True, exist_ok=True)
         for name in ("metrics.csv", "config.json"):
             shutil.copyfile(out / name, archived / name)
@@ -122,36 +131,37 @@ def launch_all(args: argparse.Namespace) -> None:
 
 
 def run_jobs(jobs: list[Job], steps: int, cores: list[str]) -> None:
-    """Run every job not yet archived, one single-core process pinned to each of ``cores`` at a time."""
-    running: dict[str, tuple[subprocess.Popen, Path, Path]] = {}  # core -> (process, run folder, archive)
+    """Run every job not yet archived to ``steps``, one single-core process pinned to each of ``cores`` at a
+    time (a run that stopped short of ``steps`` continues with ``--resume``)."""
+    running: dict[str, tuple[subprocess.Popen, Job]] = {}  # core -> (process, its job)
     for job in jobs:
-        archive_if_finished(job.out, job.archived)
+        archive_if_finished(job.out, job.archived, steps)
         if (job.archived / "metrics.csv").exists():
             continue
-        core = _free_core(running, cores)
+        core = _free_core(running, cores, steps)
         job.out.parent.mkdir(parents=True, exist_ok=True)
         log = open(f"{job.out}.log", "a")  # noqa: SIM115  (closed when the process ends)
         proc = subprocess.Popen(["taskset", "-c", core, *job.command(steps)], stdout=log, stderr=log, env=os.environ)
-        running[core] = (proc, job.out, job.archived)
+        running[core] = (proc, job)
     for core in list(running):
-        _wait_and_archive(*running.pop(core))
+        _wait_and_archive(*running.pop(core), steps)
 
 
-def _free_core(running: dict[str, tuple[subprocess.Popen, Path, Path]], cores: list[str]) -> str:
+def _free_core(running: dict[str, tuple[subprocess.Popen, Job]], cores: list[str], steps: int) -> str:
     """A core with no run on it, waiting for one to finish (and archiving it) if all are busy."""
     while True:
         for core in cores:
             if core not in running:
                 return core
             if running[core][0].poll() is not None:
-                _wait_and_archive(*running.pop(core))
+                _wait_and_archive(*running.pop(core), steps)
                 return core
         time.sleep(5)
 
 
-def _wait_and_archive(proc: subprocess.Popen, out: Path, archived: Path) -> None:
+def _wait_and_archive(proc: subprocess.Popen, job: Job, steps: int) -> None:
     proc.wait()
-    archive_if_finished(out, archived)
+    archive_if_finished(job.out, job.archived, steps)
 
 
 def logged_folder(out: Path, archived: Path) -> Path | None:

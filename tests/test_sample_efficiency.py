@@ -8,7 +8,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
-from sample_efficiency import run_profile, summarize, window_mean  # noqa: E402
+from sample_efficiency import archive_if_finished, run_profile, summarize, window_mean  # noqa: E402
 
 
 def test_window_mean_averages_the_evaluations_up_to_the_step() -> None:
@@ -43,3 +43,18 @@ def test_a_run_profile_reads_the_run_up_to_its_length() -> None:
         "curve_mean": 55.0,  # (10 + 90 + 20 + 100) / 4; the evaluation at 50k lies beyond the run's length
     }
     assert run_profile(scores, 60_000, threshold=80.0) is None  # not yet that long
+
+
+def test_a_run_is_archived_only_once_it_reached_the_requested_steps(tmp_path: Path) -> None:
+    out, archived = tmp_path / "run", tmp_path / "archive"
+    out.mkdir()
+    (out / "metrics.csv").write_text("env_steps,normalized_score\n10000,5.0\n20000,7.5\n")
+    (out / "config.json").write_text("{}")
+    archive_if_finished(out, archived, 20_000)
+    assert not archived.exists()  # no final policy yet: the run is still going or was killed
+    (out / "policy.msgpack").write_bytes(b"")
+    archive_if_finished(out, archived, 30_000)
+    assert not archived.exists()  # a finished 20k run asked to go on to 30k is continued, not archived
+    archive_if_finished(out, archived, 20_000)
+    assert (archived / "metrics.csv").read_text() == (out / "metrics.csv").read_text()
+    assert (archived / "config.json").exists()
