@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import re
+import textwrap
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
@@ -18,6 +19,8 @@ import numpy as np
 from rankgame.atomic import atomic_write
 from rankgame.errors import RankGameError
 
+#: Characters per line of a figure title; longer titles wrap onto more lines (the figure is 7 inches wide).
+TITLE_WIDTH = 70
 #: A run folder name's seed suffix: ``_s0``, ``-s12``, ``__seed3``.
 SEED_SUFFIX = re.compile(r"[_-]+s(?:eed)?\d+$")
 
@@ -128,7 +131,7 @@ def plot_groups(
         if std is not None:
             ax.fill_between(steps, values - std, values + std, color=line.get_color(), alpha=0.2)
     if title:
-        ax.set_title(title)
+        ax.set_title(textwrap.fill(title, TITLE_WIDTH))
     ax.set_xlabel("environment steps")
     ax.set_ylabel(column)
     ax.grid(alpha=0.3)
