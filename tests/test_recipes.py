@@ -38,7 +38,11 @@ def test_paper_changes_nothing_and_tuned_changes_only_listed_pairs() -> None:
         "reward.weight_decay": 1e-2,
     }
     assert recipe_settings("tuned", "HalfCheetah-v5", "rank-ral-auto") == {}
-    assert recipe_settings("tuned", "Hopper-v5", "rank-ral-auto") == {"k": 1.0, "reward.r_max": 1.0}
+    assert recipe_settings("tuned", "Hopper-v5", "rank-ral-auto") == {
+        "k": 1.0,
+        "reward.r_max": 1.0,
+        "sac.updates_per_step": 2.0,
+    }
     assert recipe_settings("tuned", "Walker2d-v5", "rank-pal-auto") == {"reward.patience": 1}
     with pytest.raises(ValueError, match="unknown recipe 'best'"):
         recipe_settings("best", "Ant-v5", "rank-pal-auto")
