@@ -537,7 +537,8 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
             if cfg.switch_at is not None and step == cfg.switch_at + 1:  # evaluations at <= switch_at: before
                 game.switch()
             game.env_step()
-            if step % game.n_pol == 0:
+            at_iteration_end = step % game.n_pol == 0
+            if at_iteration_end:
                 game.reward_turn()
             if step % cfg.eval_every == 0 or step == cfg.steps:
                 eval_start = time.perf_counter()
@@ -555,7 +556,6 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
                     }
                 )
                 bar.set_postfix(_eval_postfix(last_eval))
-            at_iteration_end = step % game.n_pol == 0
             if (at_iteration_end and step % cfg.checkpoint_every < game.n_pol) or step == cfg.steps:
                 game.save(out / CHECKPOINT_NAME, {"wall_s": time.perf_counter() - start, "eval_s": eval_s})
             bar.update(1)
