@@ -76,17 +76,10 @@ def run_dir(root: Path, env: str, method: str, seed: int) -> Path:
     return root / f"{env_folder_name(env)}__{method}__s{seed}"
 
 
-def last_logged_step(out: Path) -> int:
-    """The last ``env_steps`` in ``out/metrics.csv`` (0 if it has no rows)."""
-    with (out / "metrics.csv").open() as handle:
-        steps = [int(float(row["env_steps"])) for row in csv.DictReader(handle)]
-    return max(steps, default=0)
-
-
 def archive_if_finished(out: Path, archived: Path, steps: int) -> None:
     """Copy the ``metrics.csv`` and ``config.json`` of a run that wrote its final policy after ``steps``
     environment steps to ``archived`` (a shorter run is continued by :func:`run_jobs`, not archived)."""
-    finished = (out / "policy.msgpack").exists() and last_logged_step(out) >= steps
+    finished = (out / "policy.msgpack").exists() and max(read_scores(out, out), default=0) >= steps
     if finished and not (archived / "metrics.csv").exists():
         archived.mkdir(parents=True, exist_ok=True)
         for name in ("metrics.csv", "config.json"):
