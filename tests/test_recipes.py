@@ -63,8 +63,8 @@ def test_the_cli_applies_the_recipe_to_the_defaults_and_explicit_options_win() -
         "--reward.lr 0.0001 (overridden), --reward.weight-decay 0.01"
     )
     cfg, note = train_config_from_argv(["--recipe=tuned", "--env=Ant-v5", "--method", "rank-ral-auto"])
-    assert cfg.reward_obs == "0:27" and cfg.reward.ral_passes == 6.0
-    assert note is not None and note.endswith("--reward-obs 0:27, --reward.ral-passes 6.0")
+    assert cfg.reward_obs == "0:27" and cfg.reward.ral_passes == 6.0 and cfg.sac.updates_per_step == 2
+    assert note is not None and note.endswith("--reward-obs 0:27, --reward.ral-passes 6.0, --sac.updates-per-step 2.0")
     keeps_paper = ["--recipe", "tuned", "--env", "HalfCheetah-v5", "--method", "rank-ral-auto"]
     cfg, note = train_config_from_argv(keeps_paper)
     assert cfg == TrainConfig(env="HalfCheetah-v5", method="rank-ral-auto")
