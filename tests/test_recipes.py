@@ -74,7 +74,8 @@ def test_the_cli_applies_the_recipe_to_the_defaults_and_explicit_options_win() -
     assert cfg == TrainConfig(env="HalfCheetah-v5", method="rank-ral-auto")
     assert note is not None and note.endswith("the paper's apply")
     cfg, note = train_config_from_argv(["--recipe", "tuned"])  # the default task and method: Hopper-v5, PAL
-    assert cfg.k == 1.0 and cfg.reward.r_max == 1.0 and note is not None and note.endswith("--reward.r-max 1.0")
+    assert cfg.k == 1.0 and cfg.reward.r_max == 1.0 and cfg.reward.patience == 1
+    assert note is not None and note.endswith("--reward.r-max 1.0, --reward.patience 1")
     cfg, note = train_config_from_argv(["--env", "Ant-v5"])
     assert cfg.reward_obs == "all" and note is None
     with pytest.raises(RankGameError, match="unknown recipe"):
