@@ -77,9 +77,9 @@ def run_dir(root: Path, env: str, method: str, seed: int) -> Path:
 
 
 def archive_if_finished(out: Path, archived: Path, steps: int) -> None:
-    """Copy the ``metrics.csv`` and ``config.json`` of a run that wrote its final policy after ``steps``
+    """Copy the ``metrics.csv`` and ``config.json`` of a run that logged its evaluation after ``steps``
     environment steps to ``archived`` (a shorter run is continued by :func:`run_jobs`, not archived)."""
-    finished = (out / "policy.msgpack").exists() and max(read_scores(out, out), default=0) >= steps
+    finished = max(read_scores(out, out), default=0) >= steps
     if finished and not (archived / "metrics.csv").exists():
         archived.mkdir(parents=True, exist_ok=True)
         for name in ("metrics.csv", "config.json"):

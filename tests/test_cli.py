@@ -188,6 +188,8 @@ def test_evaluate_reports_the_policy_return_and_its_normalized_score(tmp_path: P
     assert summary["env"] == POINT_GOAL_ID and summary["episodes"] == 3
     assert summary["return_mean"] == pytest.approx(expected.mean(), rel=1e-6)
     assert summary["return_min"] == pytest.approx(expected.min(), rel=1e-6)
+    assert summary["episode_returns"] == pytest.approx(expected.tolist(), rel=1e-6)  # in episode order
+    assert summary["episode_successes"] is None  # the toy task reports no success
     assert summary["normalized_score"] == pytest.approx(
         100 * (expected.mean() - random_return) / (expert_return - random_return), rel=1e-6
     )

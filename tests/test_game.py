@@ -24,6 +24,7 @@ from rankgame.envs.toy import POINT_GOAL_EDGE_ID, point_goal_expert
 from rankgame.errors import RankGameError
 from rankgame.game.loop import FINISHED_KEY, RankingGame, TrainConfig, train
 from rankgame.game.methods import METHODS
+from rankgame.policy.io import load_policy
 from rankgame.policy.sac import SACConfig
 from rankgame.reward.player import RewardConfig
 
@@ -207,10 +208,14 @@ def test_resume_after_kill_9_leaves_a_clean_metrics_file(toy_expert_file: Path, 
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     assert len(_rows(out)) < 12, "the run finished before it could be killed"
+    # The killed run left a whole policy of its last evaluation (written just before its row).
+    last_logged = int(_rows(out)[-1]["env_steps"])
+    assert load_policy(out / "policy.msgpack").metadata["env_steps"] in (last_logged, last_logged + 200)
     resumed = subprocess.run(_train_cmd(out, toy_expert_file, "--resume"), capture_output=True, text=True, timeout=300)
     assert resumed.returncode == 0, resumed.stderr
     steps = [int(row["env_steps"]) for row in _rows(out)]
     assert steps == list(range(200, 2401, 200))  # every evaluation once, none repeated or missing
+    assert load_policy(out / "policy.msgpack").metadata["env_steps"] == 2400
 
 
 def test_a_run_killed_before_its_first_checkpoint_resumes_from_step_0(toy_expert_file: Path, tmp_path: Path) -> None:

@@ -48,11 +48,11 @@ def test_a_run_profile_reads_the_run_up_to_its_length() -> None:
 def test_a_run_is_archived_only_once_it_reached_the_requested_steps(tmp_path: Path) -> None:
     out, archived = tmp_path / "run", tmp_path / "archive"
     out.mkdir()
-    (out / "metrics.csv").write_text("env_steps,normalized_score\n10000,5.0\n20000,7.5\n")
+    (out / "metrics.csv").write_text("env_steps,normalized_score\n10000,5.0\n")
     (out / "config.json").write_text("{}")
     archive_if_finished(out, archived, 20_000)
-    assert not archived.exists()  # no final policy yet: the run is still going or was killed
-    (out / "policy.msgpack").write_bytes(b"")
+    assert not archived.exists()  # not evaluated at 20k yet: the run is still going or was killed
+    (out / "metrics.csv").write_text("env_steps,normalized_score\n10000,5.0\n20000,7.5\n")
     archive_if_finished(out, archived, 30_000)
     assert not archived.exists()  # a finished 20k run asked to go on to 30k is continued, not archived
     archive_if_finished(out, archived, 20_000)

@@ -17,7 +17,7 @@ import numpy as np
 from rankgame.data.experts import normalized_score, shipped_envs, shipped_expert_path
 from rankgame.data.trajectories import load_trajectories
 from rankgame.envs.make import make_env
-from rankgame.envs.rollout import run_episodes, success_rate
+from rankgame.envs.rollout import episode_succeeded, run_episodes, success_rate
 from rankgame.errors import RankGameError
 from rankgame.policy.io import load_policy
 
@@ -45,8 +45,9 @@ class EvaluateConfig:
 
 
 def evaluate_policy(cfg: EvaluateConfig) -> dict[str, Any]:
-    """Roll out the policy and summarize its returns ``(episodes,)``; ``normalized_score`` is None
-    when no expert data is known for the task, ``success_rate`` when the task reports no success."""
+    """Roll out the policy and summarize its returns ``(episodes,)``, with each episode's return and
+    success in episode order; ``normalized_score`` is None when no expert data is known for the task,
+    ``success_rate`` and ``episode_successes`` when the task reports no success."""
     cfg.validate()
     saved = load_policy(cfg.policy)
     expert_path = cfg.expert
@@ -71,6 +72,8 @@ def evaluate_policy(cfg: EvaluateConfig) -> dict[str, Any]:
         "mean_length": float(np.mean([len(episode) for episode in episodes])),
         "success_rate": success_rate(success_steps),
         "normalized_score": None,
+        "episode_returns": returns.tolist(),
+        "episode_successes": None if None in success_steps else [episode_succeeded(s) for s in success_steps],
     }
     if expert is not None:
         expert_return = float(expert.returns.mean())

@@ -82,7 +82,7 @@ class TrainConfig:
     seed: int = 0
     """Seed of everything random in the run."""
     out: Path = Path("runs/train")
-    """Output folder: metrics.csv, tb/, checkpoint.npz, policy.msgpack."""
+    """Output folder: metrics.csv, tb/, checkpoint.npz, policy.msgpack (the actor of the last evaluation)."""
     expert: Path | None = None
     """Expert trajectory file (default: the shipped data for ENV)."""
     preferences: Path | None = None
@@ -215,6 +215,9 @@ def _eval_postfix(evaluation: dict[str, float]) -> dict[str, str]:
 #: Checkpoint array of the episodes finished in the iteration in progress.
 FINISHED_KEY = "game/finished"
 
+#: The actor of the run's last evaluation, in the run folder (``rankgame evaluate --policy``).
+POLICY_NAME = "policy.msgpack"
+
 LOG_COLUMNS = (
     "env_steps",
     "wall_s",
@@ -273,6 +276,8 @@ class RankingGame:
         self.method = METHODS[cfg.method]
         self.env = make_env(cfg.env)
         self.eval_env = make_env(cfg.env)
+        self.env_id = cfg.env
+        """The task the policy acts in and is evaluated on (``--switch-env`` after a switch)."""
         expert = load_expert(cfg)
         spec = env_spec(self.env)
         _require_dims(expert, spec, "expert data")
@@ -374,6 +379,7 @@ class RankingGame:
         if cfg.switch_env is not None:
             self.eval_env.close()
             self.eval_env = make_env(cfg.switch_env)
+            self.env_id = cfg.switch_env
             self.learner.switch_env(make_env(cfg.switch_env), seed=cfg.seed + cfg.switch_at)
             self.env = self.learner.env
             self.episode = _Episode()
@@ -481,6 +487,12 @@ class RankingGame:
         }
         save_checkpoint(path, metadata, arrays)
 
+    def save_policy(self, path: Path, **metadata: Any) -> None:
+        """Write the current actor for ``rankgame evaluate``, atomically (:func:`save_policy`)."""
+        spec = self.learner.spec
+        params = jax.device_get(self.learner.state.actor_params)
+        save_policy(path, self.learner.sac, params, self.env_id, spec.act_low, spec.act_high, **metadata)
+
     def _finished_array(self) -> np.ndarray:
         """This iteration's finished episodes, not yet ranked, as reward inputs ``(n, H, d)``."""
         if self.finished:
@@ -531,7 +543,6 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
         dynamic_ncols=True,
         desc=f"{cfg.method} {cfg.env}",
     )
-    spec = game.learner.spec
     try:
         for step in range(start_step + 1, cfg.steps + 1):
             if cfg.switch_at is not None and step == cfg.switch_at + 1:  # evaluations at <= switch_at: before
@@ -544,6 +555,8 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
                 eval_start = time.perf_counter()
                 last_eval = game.evaluate()
                 eval_s += time.perf_counter() - eval_start
+                policy_meta = {"command": command, "env_steps": step, "eval_return": last_eval["eval_return"]}
+                game.save_policy(out / POLICY_NAME, absorbing_flag=True, **policy_meta)
                 wall = time.perf_counter() - start
                 logger.log(
                     {
@@ -562,20 +575,8 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
     finally:
         bar.close()
         logger.close()
-    params = jax.device_get(game.learner.state.actor_params)
-    final_env = cfg.switch_env or cfg.env  # a --switch-env (at a step before --steps) is where the policy ends
-    save_policy(
-        out / "policy.msgpack",
-        game.learner.sac,
-        params,
-        final_env,
-        spec.act_low,
-        spec.act_high,
-        command=command,
-        absorbing_flag=True,
-    )
     return {
-        "env": final_env,
+        "env": game.env_id,
         "method": cfg.method,
         "steps": cfg.steps,
         **last_eval,
