@@ -82,11 +82,11 @@ def main(argv: list[str] | None = None) -> int:
             raise RankGameError(
                 f"--expert-trajectories must lie in 1..{len(expert.trajectories)} and --episodes be positive"
             )
+        env = make_env(PEN_ID)  # needs the manipulation extra
     except RankGameError as error:
         print(f"error: {error}", file=sys.stderr)
         return 1
     demonstrated = unit_goals(np.stack([t.obs[0] for t in expert.trajectories[: args.expert_trajectories]]))
-    env = make_env(PEN_ID)
     episodes, success_steps = run_episodes(
         env, saved.policy_fn(deterministic=True, seed=args.seed), args.episodes, args.seed
     )
