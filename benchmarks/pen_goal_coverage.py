@@ -78,10 +78,10 @@ def main(argv: list[str] | None = None) -> int:
         if saved.env_id != PEN_ID:
             raise RankGameError(f"{args.policy} was trained on {saved.env_id}, not {PEN_ID}")
         expert = load_trajectories(args.expert or shipped_expert_path(PEN_ID), env_id=PEN_ID)
-        if not 1 <= args.expert_trajectories <= len(expert.trajectories) or args.episodes < 1:
-            raise RankGameError(
-                f"--expert-trajectories must lie in 1..{len(expert.trajectories)} and --episodes be positive"
-            )
+        if not 1 <= args.expert_trajectories <= len(expert.trajectories):
+            raise RankGameError(f"--expert-trajectories must lie in 1..{len(expert.trajectories)}")
+        if args.episodes < 1:
+            raise RankGameError(f"--episodes must be positive (got {args.episodes})")
         env = make_env(PEN_ID)  # needs the manipulation extra
     except RankGameError as error:
         print(f"error: {error}", file=sys.stderr)

@@ -215,7 +215,8 @@ def test_resume_after_kill_9_leaves_a_clean_metrics_file(toy_expert_file: Path, 
     assert resumed.returncode == 0, resumed.stderr
     steps = [int(row["env_steps"]) for row in _rows(out)]
     assert steps == list(range(200, 2401, 200))  # every evaluation once, none repeated or missing
-    assert load_policy(out / "policy.msgpack").metadata["env_steps"] == 2400
+    final = load_policy(out / "policy.msgpack").metadata
+    assert final["env_steps"] == 2400 and final["absorbing_flag"] is True  # it reads the game's flagged obs
 
 
 def test_a_run_killed_before_its_first_checkpoint_resumes_from_step_0(toy_expert_file: Path, tmp_path: Path) -> None:

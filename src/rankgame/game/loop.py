@@ -488,10 +488,13 @@ class RankingGame:
         save_checkpoint(path, metadata, arrays)
 
     def save_policy(self, path: Path, **metadata: Any) -> None:
-        """Write the current actor for ``rankgame evaluate``, atomically (:func:`save_policy`)."""
+        """Write the current actor for ``rankgame evaluate``, atomically (:func:`save_policy`), marked as
+        one that reads the absorbing flag the game appends to observations."""
         spec = self.learner.spec
         params = jax.device_get(self.learner.state.actor_params)
-        save_policy(path, self.learner.sac, params, self.env_id, spec.act_low, spec.act_high, **metadata)
+        save_policy(
+            path, self.learner.sac, params, self.env_id, spec.act_low, spec.act_high, absorbing_flag=True, **metadata
+        )
 
     def _finished_array(self) -> np.ndarray:
         """This iteration's finished episodes, not yet ranked, as reward inputs ``(n, H, d)``."""
@@ -555,8 +558,9 @@ def train(cfg: TrainConfig, command: str | None = None) -> dict[str, Any]:
                 eval_start = time.perf_counter()
                 last_eval = game.evaluate()
                 eval_s += time.perf_counter() - eval_start
-                policy_meta = {"command": command, "env_steps": step, "eval_return": last_eval["eval_return"]}
-                game.save_policy(out / POLICY_NAME, absorbing_flag=True, **policy_meta)
+                game.save_policy(
+                    out / POLICY_NAME, command=command, env_steps=step, eval_return=last_eval["eval_return"]
+                )
                 wall = time.perf_counter() - start
                 logger.log(
                     {
