@@ -16,6 +16,7 @@ from rankgame.envs.rollout import (
     to_normalized_action,
 )
 from rankgame.envs.toy import point_goal_expert
+from rankgame.envs.variants import OBS_PREFIX_VARIANTS
 from rankgame.errors import RankGameError
 
 
@@ -33,6 +34,26 @@ from rankgame.errors import RankGameError
 def test_locomotion_tasks(env_id: str, obs_dim: int, act_dim: int) -> None:
     spec = env_spec(make_env(env_id))
     assert (spec.obs_dim, spec.act_dim, spec.max_episode_steps) == (obs_dim, act_dim, 1000)
+
+
+@pytest.mark.parametrize("variant_id", sorted(OBS_PREFIX_VARIANTS))
+def test_variants_without_contact_forces_observe_the_leading_entries_of_their_task(variant_id: str) -> None:
+    source_id, n_obs = OBS_PREFIX_VARIANTS[variant_id]
+    variant, source = make_env(variant_id), make_env(source_id)
+    assert env_spec(variant).obs_dim == n_obs
+    assert env_spec(variant).max_episode_steps == env_spec(source).max_episode_steps
+    obs_v, _ = variant.reset(seed=3)
+    obs_s, _ = source.reset(seed=3)
+    rng = np.random.default_rng(0)
+    left_out = 0.0
+    for _ in range(30):
+        np.testing.assert_array_equal(obs_v, obs_s[:n_obs])
+        act = rng.uniform(-0.4, 0.4, env_spec(source).act_dim)
+        obs_v, rew_v, *_ = variant.step(act)
+        obs_s, rew_s, *_ = source.step(act)
+        assert rew_v == rew_s
+        left_out = max(left_out, float(np.abs(obs_s[n_obs:]).max()))
+    assert left_out > 0.0  # what the variant leaves out: contact forces, not zeros
 
 
 def test_other_continuous_ids_work() -> None:

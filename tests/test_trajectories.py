@@ -136,6 +136,21 @@ def test_every_shipped_expert_file_loads_with_its_provenance() -> None:
         assert meta["versions"]["gymnasium"] and meta["versions"]["mujoco"]
 
 
+def test_a_variant_without_contact_forces_ships_its_tasks_expert_data_without_them() -> None:
+    from rankgame.envs.variants import ANT_NO_CONTACT_ID
+
+    source, variant = load_shipped_expert("Ant-v5"), load_shipped_expert(ANT_NO_CONTACT_ID)
+    assert (variant.env_id, variant.obs_dim, variant.act_dim) == (ANT_NO_CONTACT_ID, 27, 8)
+    assert variant.metadata["derived_from"] == "Ant-v5"
+    assert variant.metadata["random_return_mean"] == source.metadata["random_return_mean"]
+    np.testing.assert_array_equal(variant.returns, source.returns)
+    for short, full in zip(variant.trajectories, source.trajectories, strict=True):
+        np.testing.assert_array_equal(short.obs, full.obs[:, :27])
+        np.testing.assert_array_equal(short.acts, full.acts)
+    with pytest.raises(ValueError, match="cannot keep 106 of 105"):
+        source.with_leading_obs(106, ANT_NO_CONTACT_ID)
+
+
 def test_namespaced_ids_name_their_shipped_files_with_a_double_underscore(tmp_path: Path) -> None:
     from rankgame.data import shipped_ids, shipped_path
 

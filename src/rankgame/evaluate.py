@@ -14,8 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from rankgame.data.experts import normalized_score, shipped_envs, shipped_expert_path
-from rankgame.data.trajectories import load_trajectories
+from rankgame.data.experts import load_expert_data, normalized_score, shipped_envs, shipped_expert_path
 from rankgame.envs.make import make_env
 from rankgame.envs.rollout import episode_succeeded, run_episodes, success_rate
 from rankgame.errors import RankGameError
@@ -53,7 +52,7 @@ def evaluate_policy(cfg: EvaluateConfig) -> dict[str, Any]:
     expert_path = cfg.expert
     if expert_path is None and saved.env_id in shipped_envs():
         expert_path = shipped_expert_path(saved.env_id)
-    expert = load_trajectories(expert_path, env_id=saved.env_id) if expert_path is not None else None
+    expert = load_expert_data(cfg.expert, saved.env_id) if expert_path is not None else None
 
     env = make_env(saved.env_id)
     policy = saved.policy_fn(deterministic=not cfg.stochastic, seed=cfg.seed)

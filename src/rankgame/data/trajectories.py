@@ -20,6 +20,7 @@ key                shape / dtype                meaning
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import zipfile
 from collections.abc import Sequence
@@ -101,6 +102,15 @@ class TrajectoryFile:
     def returns(self) -> np.ndarray:
         """``(n_episodes,)`` undiscounted returns."""
         return np.array([traj.ret for traj in self.trajectories])
+
+    def with_leading_obs(self, n_obs: int, env_id: str) -> TrajectoryFile:
+        """The same episodes as data of ``env_id``, a task that observes only the first ``n_obs`` entries:
+        observations ``(T + 1, obs_dim) -> (T + 1, n_obs)``; actions and rewards unchanged."""
+        if not 0 < n_obs <= self.obs_dim:
+            raise ValueError(f"cannot keep {n_obs} of {self.obs_dim} observation entries")
+        trajectories = tuple(dataclasses.replace(t, obs=t.obs[:, :n_obs]) for t in self.trajectories)
+        metadata = {**self.metadata, "env_id": env_id, "obs_dim": n_obs, "derived_from": self.env_id}
+        return TrajectoryFile(env_id, trajectories, metadata)
 
 
 def save_trajectories(path: str | Path, env_id: str, trajectories: Sequence[Trajectory], **metadata: Any) -> Path:

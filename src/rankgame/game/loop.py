@@ -33,9 +33,9 @@ from rankgame.checkpoint import (
     unflatten_tree,
 )
 from rankgame.cli_args import config_to_json
-from rankgame.data.experts import normalized_score, shipped_envs, shipped_expert_path
+from rankgame.data.experts import load_expert_data, normalized_score, shipped_envs
 from rankgame.data.preferences import load_preferences, shipped_preferences_path
-from rankgame.data.trajectories import Trajectory, TrajectoryFile, load_trajectories
+from rankgame.data.trajectories import Trajectory, TrajectoryFile
 from rankgame.envs.make import EnvSpec, env_spec, make_env
 from rankgame.envs.rollout import (
     EVAL_SEED_OFFSET,
@@ -244,15 +244,13 @@ class _Episode:
         self.acts: list[np.ndarray] = []
 
 
-def load_expert(cfg: TrainConfig, path: Path | None = None, env_id: str | None = None) -> TrajectoryFile:
-    """The expert data to imitate: ``path`` (recorded on ``env_id``), else ``--expert FILE`` or the
-    shipped file of the task."""
-    if path is None:
-        path = cfg.expert if cfg.expert is not None else shipped_expert_path(cfg.env)
-    data = load_trajectories(path, env_id=env_id or cfg.env)
+def load_expert(cfg: TrainConfig, path: Path | None, env_id: str) -> TrajectoryFile:
+    """The expert data to imitate, recorded on ``env_id``: the file at ``path``, or the shipped data of
+    ``env_id`` when ``path`` is None. It must hold at least ``--expert-trajectories`` trajectories."""
+    data = load_expert_data(path, env_id)
     if len(data.trajectories) < cfg.expert_trajectories:
         raise RankGameError(
-            f"{path} holds {len(data.trajectories)} trajectories; "
+            f"{path or f'the shipped expert data of {env_id}'} holds {len(data.trajectories)} trajectories; "
             f"--expert-trajectories asks for {cfg.expert_trajectories}"
         )
     return data
@@ -278,7 +276,7 @@ class RankingGame:
         self.eval_env = make_env(cfg.env)
         self.env_id = cfg.env
         """The task the policy acts in and is evaluated on (``--switch-env`` after a switch)."""
-        expert = load_expert(cfg)
+        expert = load_expert(cfg, cfg.expert, cfg.env)
         spec = env_spec(self.env)
         _require_dims(expert, spec, "expert data")
         self.horizon = spec.max_episode_steps or max(len(t) for t in expert.trajectories)
@@ -360,12 +358,9 @@ class RankingGame:
                     f"--switch-env {cfg.switch_env} has (obs_dim, act_dim, horizon) = {shapes[0]}; "
                     f"{cfg.env} has {shapes[1]}"
                 )
-        path = cfg.switch_expert
-        if path is None and cfg.switch_env in shipped_envs():
-            path = shipped_expert_path(cfg.switch_env)
-        if path is None:
+        if cfg.switch_expert is None and cfg.switch_env not in shipped_envs():
             return None, None
-        expert = load_expert(cfg, path, cfg.switch_env or cfg.env)
+        expert = load_expert(cfg, cfg.switch_expert, cfg.switch_env or cfg.env)
         _require_dims(expert, spec, "--switch-expert data")
         return expert, self._inputs(expert.trajectories[: cfg.expert_trajectories], "--switch-expert data")
 

@@ -2,7 +2,9 @@
 
 Each file was written by ``rankgame expert`` (its metadata keeps the exact command, seed and
 library versions) and also records the mean return of a uniformly random policy, so that scores
-can be normalized as ``100 (R - R_random) / (R_expert - R_random)``.
+can be normalized as ``100 (R - R_random) / (R_expert - R_random)``. A variant task that observes only
+the leading entries of another (``rankgame/AntNoContact-v5``) uses that task's file with the other
+entries left out.
 """
 
 from __future__ import annotations
@@ -14,23 +16,34 @@ import numpy as np
 
 from rankgame.data import shipped_ids, shipped_path
 from rankgame.data.trajectories import TrajectoryFile, load_trajectories
+from rankgame.envs.variants import OBS_PREFIX_VARIANTS
 
 EXPERT_DIR = Path(__file__).parent
 
 
 def shipped_envs() -> list[str]:
-    """Environment ids with shipped expert data, sorted."""
-    return shipped_ids(EXPERT_DIR)
+    """Environment ids with shipped expert data, sorted (variants included)."""
+    return sorted([*shipped_ids(EXPERT_DIR), *OBS_PREFIX_VARIANTS])
 
 
 def shipped_expert_path(env_id: str) -> Path:
-    """Path of the shipped expert file of ``env_id``; a :class:`~rankgame.errors.RankGameError` if there is none."""
-    return shipped_path(EXPERT_DIR, env_id, "expert data", "pass your own file")
+    """The shipped file that holds the expert data of ``env_id`` (for a variant, that of its source task);
+    a :class:`~rankgame.errors.RankGameError` if there is none."""
+    source_id = OBS_PREFIX_VARIANTS.get(env_id, (env_id, 0))[0]
+    return shipped_path(EXPERT_DIR, source_id, "expert data", "pass your own file")
 
 
 def load_shipped_expert(env_id: str) -> TrajectoryFile:
     """Load and validate the shipped expert trajectories of ``env_id``."""
+    if env_id in OBS_PREFIX_VARIANTS:
+        source_id, n_obs = OBS_PREFIX_VARIANTS[env_id]
+        return load_shipped_expert(source_id).with_leading_obs(n_obs, env_id)
     return load_trajectories(shipped_expert_path(env_id), env_id=env_id)
+
+
+def load_expert_data(path: Path | None, env_id: str) -> TrajectoryFile:
+    """Expert data recorded on ``env_id``: the file at ``path``, or the shipped data when ``path`` is None."""
+    return load_shipped_expert(env_id) if path is None else load_trajectories(path, env_id=env_id)
 
 
 def normalized_score(ret: float | np.ndarray, expert_return: float, random_return: float) -> float | np.ndarray:
