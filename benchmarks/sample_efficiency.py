@@ -38,6 +38,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from rankgame.envs.variants import OBS_PREFIX_VARIANTS
+
 #: Authors' released curves (LfO, 1 expert trajectory; hari-sikchi/rank-game, learning_curves/LfO/*/
 #: {pal,ral}_results.txt), mean return over their seeds normalized by their experts and random returns
 #: (Hopper 3536 / 13.8, HalfCheetah 13051 / -271.9, Walker2d 5457 / 1.5, Ant 5926 / -62.0,
@@ -61,6 +63,9 @@ PUBLISHED = {
         "Humanoid-v5": {100_000: 4, 300_000: 49},
     },
 }
+# The variants without contact forces are observed as the authors' gym -v2 tasks were: same figures.
+for _curves in PUBLISHED.values():
+    _curves.update({variant: _curves[source] for variant, (source, _) in OBS_PREFIX_VARIANTS.items()})
 
 
 #: How to pass ``--train-args`` a value that argparse would take for an option of its own.

@@ -8,7 +8,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
-from sample_efficiency import archive_if_finished, run_profile, summarize, window_mean  # noqa: E402
+from sample_efficiency import PUBLISHED, archive_if_finished, run_profile, summarize, window_mean  # noqa: E402
 
 
 def test_window_mean_averages_the_evaluations_up_to_the_step() -> None:
@@ -58,3 +58,9 @@ def test_a_run_is_archived_only_once_it_reached_the_requested_steps(tmp_path: Pa
     archive_if_finished(out, archived, 20_000)
     assert (archived / "metrics.csv").read_text() == (out / "metrics.csv").read_text()
     assert (archived / "config.json").exists()
+
+
+def test_the_variants_without_contact_forces_are_compared_with_their_tasks_published_curves() -> None:
+    for curves in PUBLISHED.values():
+        assert curves["rankgame/AntNoContact-v5"] == curves["Ant-v5"]
+        assert curves["rankgame/HumanoidNoContact-v5"] == curves["Humanoid-v5"]
