@@ -44,6 +44,10 @@ def test_paper_changes_nothing_and_tuned_changes_only_listed_pairs() -> None:
         "sac.updates_per_step": 2.0,
     }
     assert recipe_settings("tuned", "Walker2d-v5", "rank-pal-auto") == {"reward.patience": 1}
+    assert recipe_settings("tuned", "rankgame/AntNoContact-v5", "rank-ral-auto") == {
+        "reward.ral_passes": 6.0,
+        "sac.updates_per_step": 2.0,
+    }
     assert recipe_settings("tuned", "Walker2d-v5", "rank-ral-auto") == {
         "reward.ral_passes": 6.0,
         "sac.updates_per_step": 2.0,

@@ -16,10 +16,9 @@ And Ant-v5 and Humanoid-v5 as the paper's gym ``-v2`` versions of them were obse
   external contact forces at the end of their observations (``include_cfrc_ext_in_observation=False``:
   Ant keeps its first 27 entries of 105, Humanoid its first 270 of 348). Gym's Ant-v2 and Humanoid-v2
   reported those forces as zeros. Humanoid's reach thousands where its other entries stay within
-  hundreds; Ant's are clipped to [-1, 1] but make up 78 of its 105 entries. The policy, the critics
-  and the reward all read them. Everything else (dynamics, reward,
-  termination, horizon) is the original task's, so its expert data serves, with the forces left out
-  (:data:`OBS_PREFIX_VARIANTS`).
+  hundreds; Ant's are clipped to [-1, 1] but make up 78 of its 105 entries. Everything else
+  (dynamics, reward, termination, horizon) is the original task's, so its expert data serves with the
+  forces left out (:data:`OBS_PREFIX_VARIANTS`).
 """
 
 from __future__ import annotations
