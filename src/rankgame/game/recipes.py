@@ -41,7 +41,7 @@ some task and method pairs, the settings that measured better on this implementa
 * Humanoid-v5, RANK-PAL(auto): the same two settings of the authors' Humanoid configuration (mean
   over the evaluations from 250k to 300k 48.3, 34.1 and 26.8 over 3 seeds against 23.8 and 17.5
   over 2 seeds with the paper's settings); the same on ``rankgame/HumanoidNoContact-v5``, where they
-  were measured (86.2 at 300k over seeds 0 and 1, published 68).
+  were measured (76.6 at 300k over 5 seeds, published 68).
 
 The CLI applies a recipe to the defaults, so an option given on the command line overrides it.
 """
