@@ -49,10 +49,8 @@ def evaluate_policy(cfg: EvaluateConfig) -> dict[str, Any]:
     ``success_rate`` and ``episode_successes`` when the task reports no success."""
     cfg.validate()
     saved = load_policy(cfg.policy)
-    expert_path = cfg.expert
-    if expert_path is None and saved.env_id in shipped_envs():
-        expert_path = shipped_expert_path(saved.env_id)
-    expert = load_expert_data(cfg.expert, saved.env_id) if expert_path is not None else None
+    has_expert = cfg.expert is not None or saved.env_id in shipped_envs()
+    expert = load_expert_data(cfg.expert, saved.env_id) if has_expert else None
 
     env = make_env(saved.env_id)
     policy = saved.policy_fn(deterministic=not cfg.stochastic, seed=cfg.seed)
@@ -80,7 +78,7 @@ def evaluate_policy(cfg: EvaluateConfig) -> dict[str, Any]:
         score = float(normalized_score(summary["return_mean"], expert_return, random_return))
         summary.update(
             normalized_score=score if np.isfinite(score) else None,
-            expert_file=str(expert_path),
+            expert_file=str(cfg.expert or shipped_expert_path(saved.env_id)),
             expert_return=expert_return,
             random_return=random_return if np.isfinite(random_return) else None,
         )
