@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from rankgame.data import shipped_ids, shipped_path
+from rankgame.data.minari import is_minari_ref, minari_dataset_id, read_minari
 from rankgame.data.trajectories import TrajectoryFile, load_trajectories
 from rankgame.envs.variants import OBS_PREFIX_VARIANTS
 
@@ -41,9 +42,14 @@ def load_shipped_expert(env_id: str) -> TrajectoryFile:
     return load_trajectories(shipped_expert_path(env_id), env_id=env_id)
 
 
-def load_expert_data(path: Path | None, env_id: str) -> TrajectoryFile:
-    """Expert data recorded on ``env_id``: the file at ``path``, or the shipped data when ``path`` is None."""
-    return load_shipped_expert(env_id) if path is None else load_trajectories(path, env_id=env_id)
+def load_expert_data(path: Path | str | None, env_id: str) -> TrajectoryFile:
+    """Expert data recorded on ``env_id``: the file at ``path``, the local Minari dataset it names as
+    ``minari:DATASET_ID``, or the shipped data when ``path`` is None."""
+    if path is None:
+        return load_shipped_expert(env_id)
+    if is_minari_ref(path):
+        return read_minari(minari_dataset_id(path), env_id)
+    return load_trajectories(path, env_id=env_id)
 
 
 def normalized_score(ret: float | np.ndarray, expert_return: float, random_return: float) -> float | np.ndarray:

@@ -19,6 +19,7 @@ import numpy as np
 
 from rankgame.checkpoint import load_checkpoint
 from rankgame.data import shipped_path
+from rankgame.data.minari import is_minari_ref, minari_dataset_id, read_minari
 from rankgame.data.trajectories import Trajectory, TrajectoryFile, load_trajectories, save_trajectories
 from rankgame.envs.make import env_spec, make_env
 from rankgame.envs.rollout import to_env_action
@@ -151,9 +152,11 @@ def sample_preferences(run: Path, out: Path, count: int, seed: int, command: str
     return {"env": env_id, "replay_episodes": len(episodes), "drawn": count, "returns_worst_to_best": returns}
 
 
-def load_preferences(path: Path, env_id: str) -> tuple[TrajectoryFile, np.ndarray]:
-    """Read a preference file for ``env_id``: the file and its worst-to-best order ``(p,)``."""
-    data = load_trajectories(path, env_id=env_id)
+def load_preferences(path: Path | str, env_id: str) -> tuple[TrajectoryFile, np.ndarray]:
+    """Read a preference file for ``env_id`` (or the local Minari dataset it names as ``minari:DATASET_ID``,
+    ranked by its ``ranks`` if it was written from a file that had them, else by returns): the file and its
+    worst-to-best order ``(p,)``."""
+    data = read_minari(minari_dataset_id(path), env_id) if is_minari_ref(path) else load_trajectories(path, env_id)
     if len(data.trajectories) < 2:
         raise RankGameError(f"{path} holds {len(data.trajectories)} trajectory; a ranking needs at least 2")
     return data, ranking_order(data)
