@@ -1,9 +1,11 @@
-"""The ``rankgame`` command line: ``train``, ``evaluate``, ``expert``, ``record``, ``preferences``, ``experts``
-and ``plot``.
+"""The ``rankgame`` command line: ``train``, ``evaluate``, ``expert``, ``record``, ``preferences``, ``experts``,
+``plot``, ``export-reward`` and ``data``.
 
 Options are generated from the config dataclasses (see :mod:`rankgame.cli_args`). A ``--preset``
-picks the defaults the other options start from, and ``--help`` shows that preset's values.
-Every user error ends in one line on stderr and a non-zero exit status.
+picks the defaults the other options start from, and ``--help`` shows that preset's values. With
+``--resume`` a run takes its settings from its folder; options given explicitly must agree with them.
+Every user error ends in one line on stderr and a non-zero exit status (1; 130 or 143 for a run
+stopped by SIGINT or SIGTERM after its checkpoint).
 """
 
 from __future__ import annotations
@@ -12,18 +14,52 @@ import argparse
 import dataclasses
 import json
 import shlex
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn, TypeVar
 
-from rankgame.cli_args import add_dataclass_options, dataclass_from_args
-from rankgame.errors import RankGameError
+from rankgame.cli_args import add_dataclass_options, dataclass_from_args, explicit_dests
+from rankgame.errors import RankGameError, RunInterrupted
 
 if TYPE_CHECKING:
-    from rankgame.game.loop import TrainConfig
+    from rankgame.config import TrainConfig
 
 PROG = "rankgame"
+
+#: Spellings of ``rankgame train`` options before they moved into their piece's group; still accepted.
+LEGACY_SPELLINGS = {
+    "--k": "--rankings.k",
+    "--schedule": "--rankings.schedule",
+    "--beta": "--rankings.beta",
+    "--interpolations": "--rankings.interpolations",
+    "--pref-noise": "--rankings.pref-noise",
+    "--reward.pref-weight": "--rankings.pref-weight",
+    "--reward.snippet-length": "--rankings.snippet-length",
+    "--reward.holdout-fraction": "--leader.holdout-fraction",
+    "--reward.patience": "--leader.patience",
+    "--reward.max-epochs": "--leader.max-epochs",
+    "--reward.ral-passes": "--leader.ral-passes",
+    "--switch-at": "--switch.at",
+    "--switch-env": "--switch.env",
+    "--switch-expert": "--switch.expert",
+    "--reward.budget": "--ablation.budget",
+    "--reward.budget-rows": "--ablation.budget-rows",
+    "--reward.spectral-norm": "--ablation.spectral-norm",
+    "--no-reward.spectral-norm": "--no-ablation.spectral-norm",
+    "--mixup": "--ablation.mixup",
+}
+
+
+def _modern_spelling(argv: Sequence[str]) -> list[str]:
+    """``argv`` with the options of :data:`LEGACY_SPELLINGS` renamed (``--k 1`` and ``--k=1`` alike)."""
+    renamed = []
+    for arg in argv:
+        name, eq, value = arg.partition("=")
+        renamed.append(LEGACY_SPELLINGS.get(name, name) + eq + value if name.startswith("--") else arg)
+    return renamed
+
 
 #: A command's config dataclass (``TrainConfig``, ``ExpertConfig``).
 Config = TypeVar("Config")
@@ -60,10 +96,12 @@ def _config_with_sac_preset(
     make_config: Callable[..., Config],
     default_preset: str,
     add_options: Callable[[argparse.ArgumentParser], None] | None = None,
-) -> Config:
+) -> tuple[Config, set[str]]:
     """Parse ``argv`` into the config made by ``make_config(sac=preset)``; ``--preset`` sets the SAC defaults.
 
     ``add_options`` adds options that are not fields of the config (read ahead by ``make_config``).
+    Returns the config and the dotted names of the options given explicitly (an explicit ``--preset``
+    counts as every ``sac.*`` option).
     """
     from rankgame.policy.sac import SAC_PRESETS
 
@@ -71,34 +109,79 @@ def _config_with_sac_preset(
     if preset not in SAC_PRESETS:
         raise RankGameError(f"unknown preset {preset!r}; choose from {', '.join(SAC_PRESETS)}")
     default = make_config(sac=SAC_PRESETS[preset])
-    parser = _Parser(prog=f"{PROG} {command}", description=description)
+    parser = _Parser(prog=f"{PROG} {command}", usage=f"{PROG} {command} [options]", description=description)
     parser.add_argument(
         "--preset", choices=list(SAC_PRESETS), default=preset, help=f"SAC preset (default: {default_preset})"
     )
     if add_options is not None:
         add_options(parser)
     add_dataclass_options(parser, default)
-    return dataclass_from_args(parser.parse_args(argv), default)
+    config = dataclass_from_args(parser.parse_args(argv), default)
+    explicit = explicit_dests(parser, argv)
+    if "preset" in explicit:
+        explicit |= {f"sac.{f.name}" for f in dataclasses.fields(default.sac)}  # type: ignore[attr-defined]
+    return config, explicit
+
+
+def _resumed_config(config: Config, explicit: set[str]) -> Config:
+    """With ``--resume``, the run's own settings from its folder, run-control options given explicitly
+    applied; an explicit option that differs from the run's is refused by name. Without ``--resume``, or
+    for a folder with no saved settings (the harness then says why it cannot resume), ``config``."""
+    from rankgame.checkpoint import CHECKPOINT_NAME, RUN_CONTROL_OPTIONS, flatten_options, load_checkpoint, option_name
+    from rankgame.config import config_from_json, config_to_json
+
+    out = Path(config.out)  # type: ignore[attr-defined]
+    if not config.resume:  # type: ignore[attr-defined]
+        return config
+    if (out / CHECKPOINT_NAME).is_file():
+        saved = load_checkpoint(out / CHECKPOINT_NAME)[0]["config"]
+    elif (out / "config.json").is_file():
+        try:
+            saved = json.loads((out / "config.json").read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise RankGameError(f"{out / 'config.json'}: unreadable run settings ({exc})") from None
+        saved.pop("command", None)
+    else:
+        return config
+    given, was = flatten_options(config_to_json(config)), flatten_options(saved)
+    for name in sorted(explicit):
+        if name.split(".")[0] not in RUN_CONTROL_OPTIONS and name in given and given[name] != was.get(name):
+            raise RankGameError(
+                f"{option_name(name)} {given[name]} differs from the run's {was.get(name)} in {out}; a resumed run "
+                "keeps its settings"
+            )
+    run_control = {name: getattr(config, name) for name in RUN_CONTROL_OPTIONS if name in explicit or name == "out"}
+    return dataclasses.replace(config_from_json(type(config), saved), **run_control, resume=True)
 
 
 def _cmd_expert(argv: Sequence[str]) -> int:
     from rankgame.expert import ExpertConfig, train_expert
 
     description = "Train a SAC expert on the true reward, then record trajectories of its best policy."
-    cfg = _config_with_sac_preset(argv, "expert", description, ExpertConfig, "modern")
-    print(json.dumps(train_expert(cfg, command=shlex.join([PROG, "expert", *argv])), indent=2))
+    cfg, explicit = _config_with_sac_preset(argv, "expert", description, ExpertConfig, "modern")
+    cfg = _resumed_config(cfg, explicit)
+    _print_json(train_expert(cfg, command=shlex.join([PROG, "expert", *argv])))
     return 0
+
+
+def _print_json(summary: dict[str, Any]) -> None:
+    """A command's summary as valid JSON: NaN and infinite numbers become null."""
+    from rankgame.run import finite_or_none
+
+    print(json.dumps(finite_or_none(summary), indent=2, allow_nan=False))
 
 
 def train_config_from_argv(argv: Sequence[str]) -> tuple[TrainConfig, str | None]:
     """Parse ``rankgame train`` options: the config, and a note on what ``--recipe`` changed (None for paper).
 
     The SAC preset and the recipe of ``--env`` and ``--method`` set the defaults; options given
-    explicitly override them.
+    explicitly override them. With ``--resume`` the run's saved settings are the config.
     """
-    from rankgame.game.loop import TrainConfig
+    from rankgame.config import TrainConfig
     from rankgame.game.recipes import RECIPES, recipe_settings, setting_value, with_settings
     from rankgame.policy.sac import SACConfig
+
+    argv = _modern_spelling(argv)
 
     recipe = _value_from_argv(argv, "--recipe", "paper")
     env = _value_from_argv(argv, "--env", TrainConfig.env)
@@ -122,7 +205,11 @@ def train_config_from_argv(argv: Sequence[str]) -> tuple[TrainConfig, str | None
         )
 
     description = "Imitate an expert by playing the ranking game (RANK-PAL / RANK-RAL / IMIT)."
-    cfg = _config_with_sac_preset(argv, "train", description, make_config, "paper", add_recipe)
+    cfg, explicit = _config_with_sac_preset(argv, "train", description, make_config, "paper", add_recipe)
+    if "recipe" in explicit:
+        explicit |= set(settings)
+    if cfg.resume:
+        return _resumed_config(cfg, explicit), None
     if recipe == "paper":
         return cfg, None
     changes = [
@@ -134,12 +221,12 @@ def train_config_from_argv(argv: Sequence[str]) -> tuple[TrainConfig, str | None
 
 
 def _cmd_train(argv: Sequence[str]) -> int:
-    from rankgame.game.loop import train
+    from rankgame.train import train
 
     cfg, recipe_note = train_config_from_argv(argv)
     if recipe_note is not None:
         print(recipe_note, file=sys.stderr)
-    print(json.dumps(train(cfg, command=shlex.join([PROG, "train", *argv])), indent=2))
+    _print_json(train(cfg, command=shlex.join([PROG, "train", *argv])))
     return 0
 
 
@@ -219,7 +306,7 @@ def _cmd_evaluate(argv: Sequence[str]) -> int:
 
     parser = _Parser(prog=f"{PROG} evaluate", description="Return and normalized score of a saved policy.")
     add_dataclass_options(parser, EvaluateConfig())
-    print(json.dumps(evaluate_policy(dataclass_from_args(parser.parse_args(argv), EvaluateConfig())), indent=2))
+    _print_json(evaluate_policy(dataclass_from_args(parser.parse_args(argv), EvaluateConfig())))
     return 0
 
 
@@ -278,6 +365,36 @@ def _cmd_plot(argv: Sequence[str]) -> int:
     return 0
 
 
+def _cmd_export_reward(argv: Sequence[str]) -> int:
+    from rankgame.reward.export import export_reward
+
+    parser = _Parser(
+        prog=f"{PROG} export-reward",
+        description="Write the learned reward of a rankgame train run as a file that load_reward() reads.",
+    )
+    parser.add_argument("run", type=Path, help="folder of a rankgame train run (its checkpoint.npz)")
+    parser.add_argument("--out", type=Path, required=True, help="reward file to write (e.g. reward.msgpack)")
+    args = parser.parse_args(argv)
+    print(export_reward(args.run, args.out))
+    return 0
+
+
+def _cmd_data(argv: Sequence[str]) -> int:
+    parser = _Parser(prog=f"{PROG} data", description="Convert trajectory data between formats.")
+    commands = parser.add_subparsers(dest="action", required=True, parser_class=_Parser)
+    to_minari = commands.add_parser(
+        "to-minari", help="write a rankgame trajectory file as a local Minari dataset (the minari extra)"
+    )
+    to_minari.add_argument("file", type=Path, help="rankgame trajectory file (.npz)")
+    to_minari.add_argument("dataset_id", help="Minari dataset id, such as hopper/expert-v0")
+    to_minari.add_argument("--overwrite", action="store_true", help="replace a local dataset of that id")
+    args = parser.parse_args(argv)
+    from rankgame.data.minari import to_minari as write
+
+    _print_json(write(args.file, args.dataset_id, overwrite=args.overwrite))
+    return 0
+
+
 COMMANDS = {
     "train": (_cmd_train, "imitate an expert with the ranking game (rank-pal-auto, rank-ral-auto, ...)"),
     "evaluate": (_cmd_evaluate, "roll out a saved policy: return and normalized score"),
@@ -286,7 +403,13 @@ COMMANDS = {
     "preferences": (_cmd_preferences, "draw ranked trajectories from a SAC run's replay buffer (pref methods)"),
     "experts": (_cmd_experts, "list the shipped expert data"),
     "plot": (_cmd_plot, "plot learning curves of run folders"),
+    "export-reward": (_cmd_export_reward, "write the learned reward of a run for use outside rankgame"),
+    "data": (_cmd_data, "convert trajectory data (to-minari: a local Minari dataset)"),
 }
+
+
+def _interrupt(_signum: int, _frame: Any) -> None:
+    raise KeyboardInterrupt
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -306,8 +429,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     if name not in COMMANDS:
         print(f"{PROG}: error: unknown command {name!r}; choose from {', '.join(COMMANDS)}", file=sys.stderr)
         return 2
+    if hasattr(signal, "SIGTERM"):  # SIGTERM stops a command as SIGINT does (runs install their own handlers)
+        signal.signal(signal.SIGTERM, _interrupt)
     try:
         return COMMANDS[name][0](rest)
+    except RunInterrupted as exc:
+        print(f"{PROG}: {exc}", file=sys.stderr)
+        return 128 + exc.signal_number
     except RankGameError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 1

@@ -11,7 +11,6 @@ import argparse
 import ast
 import dataclasses
 import inspect
-import json
 import textwrap
 import types
 import typing
@@ -73,7 +72,7 @@ def add_dataclass_options(parser: argparse.ArgumentParser, default: Any, prefix:
     cls = type(default)
     hints = typing.get_type_hints(cls)
     docs = field_docs(cls)
-    group = parser.add_argument_group(prefix.rstrip(".") or None)
+    group = parser.add_argument_group(prefix.rstrip(".")) if prefix else parser
     for f in dataclasses.fields(cls):
         if not f.init:
             continue
@@ -85,7 +84,11 @@ def add_dataclass_options(parser: argparse.ArgumentParser, default: Any, prefix:
         help_text = docs.get(f.name, "")
         if hints[f.name] is bool:
             group.add_argument(
-                _option(prefix, f.name), dest=dest, default=value, action=argparse.BooleanOptionalAction, help=help_text
+                _option(prefix, f.name),
+                dest=dest,
+                default=value,
+                action=argparse.BooleanOptionalAction,
+                help=f"{help_text} (default: {'yes' if value else 'no'})",
             )
             continue
         kind, extra = _parser_for(hints[f.name])
@@ -110,6 +113,13 @@ def dataclass_from_args(namespace: argparse.Namespace, default: Any, prefix: str
     return dataclasses.replace(default, **changes)
 
 
-def config_to_json(config: Any) -> dict[str, Any]:
-    """A config dataclass as plain JSON data (paths and other objects as strings)."""
-    return json.loads(json.dumps(dataclasses.asdict(config), default=str))
+def explicit_dests(parser: argparse.ArgumentParser, argv: list[str] | tuple[str, ...]) -> set[str]:
+    """The destinations (dotted option names) of the options given explicitly in ``argv``."""
+    defaults = {action: action.default for action in parser._actions}
+    try:
+        for action in defaults:
+            action.default = argparse.SUPPRESS
+        return set(vars(parser.parse_args(argv)))
+    finally:
+        for action, default in defaults.items():
+            action.default = default

@@ -8,11 +8,11 @@ Writes into the output folder:
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.metadata
 import platform
 import shlex
 import sys
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -20,16 +20,8 @@ from typing import Any
 import gymnasium as gym
 import jax
 import numpy as np
-from tqdm import tqdm
 
-from rankgame.checkpoint import (
-    CHECKPOINT_NAME,
-    checkpoint_to_resume,
-    load_run_checkpoint,
-    make_out_dir,
-    save_checkpoint,
-)
-from rankgame.cli_args import config_to_json
+from rankgame.config import config_to_json
 from rankgame.data.trajectories import Trajectory, save_trajectories
 from rankgame.envs.make import make_env
 from rankgame.envs.rollout import (
@@ -44,10 +36,10 @@ from rankgame.envs.rollout import (
     success_postfix,
 )
 from rankgame.errors import RankGameError
-from rankgame.logging import RunLogger
 from rankgame.policy.io import load_policy, save_policy
 from rankgame.policy.learner import SACLearner
 from rankgame.policy.sac import SACConfig
+from rankgame.run import RunSettings, open_run, run
 
 #: Recorded and random-policy episodes are seeded apart from training and evaluation resets.
 RECORD_SEED_OFFSET = 20_000
@@ -77,8 +69,8 @@ class ExpertConfig:
     checkpoint_every: int = 50_000
     """Environment steps between checkpoints (rounded up to evaluations)."""
     resume: bool = False
-    """Continue the run in OUT from its last checkpoint, or from step 0 if it stopped before its first one
-    (--steps may be raised to train longer)."""
+    """Continue the run in OUT from its last checkpoint, with the settings saved there (--steps may be
+    raised to train longer)."""
     tensorboard: bool = True
     """Also write TensorBoard event files to OUT/tb."""
     progress: bool = True
@@ -204,111 +196,110 @@ LOG_COLUMNS = (
 )
 
 
-@dataclass
-class _Progress:
-    """What the expert run carries from one evaluation to the next (saved in checkpoints)."""
+class ExpertTrainer:
+    """SAC on the environment reward, keeping the best evaluated policy: the :class:`~rankgame.run.Trainer`
+    of ``rankgame expert``."""
 
-    best_return: float = -np.inf
-    best_step: int = 0
-    train_return: float = float("nan")
-    wall_s: float = 0.0
-    eval_s: float = 0.0
+    def __init__(self, cfg: ExpertConfig, command: str) -> None:
+        self.cfg = cfg
+        self.command = command
+        self.learner = SACLearner(make_env(cfg.env), cfg.sac, cfg.seed)
+        self.eval_env = make_env(cfg.env)
+        self.metrics: dict[str, float] = {}
+        self.train_return = float("nan")
+        self.best_return = -np.inf
+        self.best_step = 0
 
+    @property
+    def env_steps(self) -> int:
+        return self.learner.env_steps
 
-def _restore(cfg: ExpertConfig, learner: SACLearner, path: Path) -> _Progress:
-    metadata, arrays = load_run_checkpoint(path, config_to_json(cfg), config_to_json(ExpertConfig()), cfg.steps)
-    learner.restore(metadata, arrays, seed=cfg.seed + int(metadata["env_steps"]))
-    progress = _Progress(**metadata["progress"])
-    # The best policy is saved as soon as it is evaluated, possibly after the last checkpoint.
-    best_path = path.parent / "best_policy.msgpack"
-    if best_path.exists():
-        best = load_policy(best_path).metadata
-        if best["eval_return"] > progress.best_return:
-            progress.best_return, progress.best_step = float(best["eval_return"]), int(best["env_steps"])
-    return progress
+    def step(self, step: int) -> None:
+        result = self.learner.env_step()
+        if result.episode_return is not None:
+            self.train_return = result.episode_return
+        self.metrics = self.learner.maybe_update() or self.metrics
+
+    def can_checkpoint(self, step: int) -> bool:
+        return step % self.cfg.eval_every == 0
+
+    def evaluate(self) -> dict[str, float]:
+        returns, success = evaluate_episodes(
+            self.eval_env, self.learner.policy(), self.cfg.eval_episodes, self.cfg.seed + EVAL_SEED_OFFSET
+        )
+        row = {
+            "train_return": self.train_return,
+            "eval_return": float(returns.mean()),
+            "eval_return_std": float(returns.std()),
+        }
+        return row if success is None else {**row, "eval_success": success}
+
+    def training_metrics(self) -> dict[str, float]:
+        return self.metrics
+
+    def save_policies(self, out: Path, step: int, row: dict[str, float]) -> None:
+        """``policy.msgpack`` (this evaluation's actor) and, when it is the best so far, ``best_policy.msgpack``."""
+        spec, ret = self.learner.spec, row["eval_return"]
+        params = jax.device_get(self.learner.state.actor_params)
+        provenance = {"command": self.command, "seed": self.cfg.seed, "config": config_to_json(self.cfg)}
+        names = ["policy.msgpack"] + (["best_policy.msgpack"] if ret > self.best_return else [])
+        for name in names:
+            save_policy(
+                out / name,
+                self.learner.sac,
+                params,
+                self.cfg.env,
+                spec.act_low,
+                spec.act_high,
+                **provenance,
+                env_steps=step,
+                eval_return=ret,
+            )
+        if ret > self.best_return:
+            self.best_return, self.best_step = ret, step
+
+    def postfix(self, row: dict[str, float]) -> dict[str, str]:
+        fields = {"eval": f"{row['eval_return']:.0f}", "best": f"{self.best_return:.0f}"}
+        return {**fields, **success_postfix(row.get("eval_success"))}
+
+    def checkpoint(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        metadata, arrays = self.learner.checkpoint()
+        progress = {"best_return": self.best_return, "best_step": self.best_step, "train_return": self.train_return}
+        return {**metadata, "progress": progress}, arrays
+
+    def restore(self, metadata: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+        self.learner.restore(metadata, arrays, seed=self.cfg.seed + int(metadata["env_steps"]))
+        progress = metadata["progress"]
+        self.best_return, self.best_step = float(progress["best_return"]), int(progress["best_step"])
+        self.train_return = float(progress["train_return"])
 
 
 def train_expert(cfg: ExpertConfig, command: str | None = None) -> dict[str, Any]:
     """Train SAC on the environment reward, keep the best evaluated policy and record its episodes."""
+    cfg = dataclasses.replace(cfg, out=Path(cfg.out))
     cfg.validate()
-    out = Path(cfg.out)
-    resume_from = checkpoint_to_resume(out, cfg.resume)
-    env = make_env(cfg.env)  # an unknown or unavailable task fails before OUT is created
-    eval_env = make_env(cfg.env)
-    make_out_dir(out)
-    learner = SACLearner(env, cfg.sac, cfg.seed)
-    progress = _restore(cfg, learner, resume_from) if resume_from is not None else _Progress()
-    ckpt = out / CHECKPOINT_NAME
-    start_step = learner.env_steps
-    spec = learner.spec
-    logger = RunLogger(out, LOG_COLUMNS, tensorboard=cfg.tensorboard, resume_step=start_step if cfg.resume else None)
-    command = command or shlex.join(sys.argv)
-    provenance = {"command": command, "seed": cfg.seed, "config": config_to_json(cfg)}
-    metrics: dict[str, float] = {}
-    start = time.perf_counter() - progress.wall_s
-    bar = tqdm(
-        total=cfg.steps, initial=start_step, disable=not cfg.progress, unit="step", dynamic_ncols=True, desc=cfg.env
+    settings = RunSettings(
+        cfg.out, cfg.steps, cfg.eval_every, cfg.checkpoint_every, cfg.resume, cfg.tensorboard, cfg.progress, cfg.env
     )
-    try:
-        for step in range(start_step + 1, cfg.steps + 1):
-            result = learner.env_step()
-            if result.episode_return is not None:
-                progress.train_return = result.episode_return
-            metrics = learner.maybe_update() or metrics
-            bar.update(1)
-            if step % cfg.eval_every == 0 or step == cfg.steps:
-                eval_start = time.perf_counter()
-                returns, success = evaluate_episodes(
-                    eval_env, learner.policy(), cfg.eval_episodes, cfg.seed + EVAL_SEED_OFFSET
-                )
-                progress.eval_s += time.perf_counter() - eval_start
-                progress.wall_s = time.perf_counter() - start
-                logger.log(
-                    {
-                        "env_steps": step,
-                        "wall_s": progress.wall_s,
-                        "steps_per_s": step / max(progress.wall_s - progress.eval_s, 1e-9),
-                        "train_return": progress.train_return,
-                        "eval_return": float(returns.mean()),
-                        "eval_return_std": float(returns.std()),
-                        **({} if success is None else {"eval_success": success}),
-                        **metrics,
-                    }
-                )
-                params = jax.device_get(learner.state.actor_params)
-                policy_meta = {**provenance, "env_steps": step, "eval_return": float(returns.mean())}
-                save_policy(
-                    out / "policy.msgpack", learner.sac, params, cfg.env, spec.act_low, spec.act_high, **policy_meta
-                )
-                if returns.mean() > progress.best_return:
-                    progress.best_return, progress.best_step = float(returns.mean()), step
-                    save_policy(
-                        out / "best_policy.msgpack",
-                        learner.sac,
-                        params,
-                        cfg.env,
-                        spec.act_low,
-                        spec.act_high,
-                        **policy_meta,
-                    )
-                postfix = {"eval": f"{returns.mean():.0f}", "best": f"{progress.best_return:.0f}"}
-                bar.set_postfix({**postfix, **success_postfix(success)})
-                if step % cfg.checkpoint_every < cfg.eval_every or step == cfg.steps:
-                    learner_meta, arrays = learner.checkpoint()
-                    metadata = {**learner_meta, "config": config_to_json(cfg), "progress": vars(progress)}
-                    save_checkpoint(ckpt, metadata, arrays)
-    finally:
-        bar.close()
-        logger.close()
+    as_json = config_to_json(cfg)
+    resumed = open_run(settings, as_json)
+    command = command or shlex.join(sys.argv)
+    trainer = ExpertTrainer(cfg, command)  # an unknown or unavailable task fails before OUT is created
+    run(trainer, settings, resumed, as_json, LOG_COLUMNS, command)
+    best = cfg.out / "best_policy.msgpack"
+    if best.exists():  # saved as soon as it is evaluated, possibly after the last checkpoint
+        saved = load_policy(best).metadata
+        if saved["eval_return"] > trainer.best_return:
+            trainer.best_return, trainer.best_step = float(saved["eval_return"]), int(saved["env_steps"])
     summary = record_expert(
-        out / "best_policy.msgpack",
-        out / "trajectories.npz",
+        best,
+        cfg.out / "trajectories.npz",
         cfg.trajectories,
         cfg.seed + RECORD_SEED_OFFSET,
         cfg.random_episodes,
         command=command,
         train_seed=cfg.seed,
         train_steps=cfg.steps,
-        best_step=progress.best_step,
+        best_step=trainer.best_step,
     )
-    return {"env": cfg.env, "best_eval_return": progress.best_return, "best_step": progress.best_step, **summary}
+    return {"env": cfg.env, "best_eval_return": trainer.best_return, "best_step": trainer.best_step, **summary}

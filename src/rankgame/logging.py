@@ -37,7 +37,7 @@ class RunLogger:
         new_file = not self.path.exists() or self.path.stat().st_size == 0
         self.columns = list(columns) if new_file else extend_header(self.path, columns)
         self._file = self.path.open("a", newline="")
-        self._writer = csv.DictWriter(self._file, fieldnames=self.columns, extrasaction="ignore")
+        self._writer = csv.DictWriter(self._file, fieldnames=self.columns, extrasaction="ignore", lineterminator="\n")
         if new_file:
             self._writer.writeheader()
             self._file.flush()

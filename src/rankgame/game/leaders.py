@@ -1,54 +1,155 @@
-"""Who leads the Stackelberg game (Sec. 4.3, App. B.2): which agent data the reward sees, and how long it trains.
+"""The leader choice of a method (Sec. 4.3, App. B.2): which agent data the reward sees, and its whole budget.
 
-* PAL (policy as leader): the reward is fit *to convergence* on the current iteration's agent data
-  only, judged by a shuffled holdout (Alg. 2).
-* RAL (reward as leader): the reward is fit on *all* agent data so far, with ``n_rew = |D| / batch``
-  gradient steps per iteration (Alg. 3, Table 4), times ``RewardConfig.ral_passes`` and rounded up to
-  whole fused chunks (``RewardConfig.chunk``, 8 steps). By default ``|D|`` counts the real agent states
-  collected so far, not the absorbing states that pad short episodes: padding multiplies the budget of
-  an early phase full of short episodes by up to H / (episode length) (``RewardConfig.budget_rows =
-  "all"`` counts it, as the authors' code does). Each
-  gradient step draws one mixture per sampled state, so with the default grid one pass covers a sixth
-  of the mixtures. RAL holds out the same shuffled share of agent rows (time steps) as PAL
-  (``holdout_fraction``), only to log a holdout loss; it trains on the rest.
+* PAL (policy as leader): the reward sees only the current iteration's agent data and is fit *to
+  convergence* on it (Alg. 2): epoch after epoch until the loss on a shuffled holdout of agent rows
+  (``holdout_fraction``) has not improved by more than :data:`MIN_IMPROVEMENT` of itself for
+  ``patience`` epochs, or ``max_epochs`` have passed; the best parameters are kept. One epoch is as
+  many gradient steps as the training rows have mixtures, at one mixture per sampled row.
+* RAL (reward as leader): the reward sees *all* agent data so far and takes
+  ``n_rew = ral_passes |D| / batch_size`` gradient steps per iteration (Alg. 3, Table 4), rounded up to
+  whole fused calls. It holds out the same share of agent rows, only to log a holdout loss. Each step
+  draws one mixture per sampled row, so with the default grid one pass covers a sixth of the mixtures.
 
-``RewardConfig.budget`` can swap the two budgets (App. D, Stackelberg game design): a PAL reward
-trained for a fixed number of passes, or a RAL reward trained until its holdout stops improving.
+Both budgets count the real agent states, not the absorbing states that pad short episodes to the
+horizon (``rows="real"``): padding would multiply the budget of an early phase full of short episodes
+by up to H / (episode length). A PAL epoch counts at least H rows. App. D's ablations change a
+leader's budget: :func:`make_leader` takes the other leader's budget (``budget``) or counts the
+padding as the authors' code does (``rows="all"``).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
+from rankgame.errors import nonfinite_fields, require
+from rankgame.game.rankings import Rankings
 from rankgame.reward.player import RewardPlayer, RewardState
-from rankgame.reward.ranking_data import RankingData
+
+LeaderName = Literal["pal", "ral"]
+Budget = Literal["holdout", "passes"]
+BudgetRows = Literal["real", "all"]
+
+#: A relative decrease of the holdout loss smaller than this is no improvement (holdout budget).
+MIN_IMPROVEMENT = 0.01
 
 
-def add_agent_data(
-    leader: str, data: RankingData, trajectories: Sequence[np.ndarray], rng: np.random.Generator
-) -> None:
-    """PAL discards older agent data; RAL aggregates it."""
-    if leader == "pal":
-        data.clear()
-    data.add(trajectories, rng)
+@dataclass(frozen=True)
+class LeaderConfig:
+    """The reward's budget per iteration (Table 4)."""
+
+    holdout_fraction: float = 0.1
+    """Share of agent rows held out of training, at most 0.5: the holdout budget (PAL's) stops fitting
+    when their loss stops improving; the passes budget (RAL's) only logs their loss."""
+    patience: int = 3
+    """Epochs without holdout improvement before fitting stops (holdout budget)."""
+    max_epochs: int = 50
+    """Upper bound on epochs per fit (holdout budget)."""
+    ral_passes: float = 1.0
+    """Passes over the agent data per iteration with the passes budget (RAL's): n_rew = ral_passes |D| /
+    batch_size gradient steps, |D| the real agent states."""
+
+    def validate(self) -> None:
+        """Raise ``ValueError`` with a one-line reason if the values make no sense."""
+        require(
+            [
+                (not nonfinite_fields(self), f"leader {', '.join(nonfinite_fields(self))} must be finite"),
+                (0.0 <= self.holdout_fraction <= 0.5, "leader.holdout_fraction must lie in [0, 0.5]"),
+                (self.patience > 0 and self.max_epochs > 0, "leader.patience and leader.max_epochs must be positive"),
+                (self.ral_passes > 0, "leader.ral_passes must be positive"),
+            ]
+        )
 
 
-def fit_reward(
-    leader: str, player: RewardPlayer, state: RewardState, data: RankingData, rng: np.random.Generator
-) -> tuple[RewardState, dict[str, float]]:
-    """One reward-player turn with the leader's budget, or the one ``RewardConfig.budget`` names."""
-    cfg = player.config
-    budget = cfg.budget if cfg.budget != "leader" else ("holdout" if leader == "pal" else "passes")
-    if budget == "holdout":
-        return player.fit_until_converged(state, data, rng)
-    rows = data.n_real_states if cfg.budget_rows == "real" else len(data.train_rows)
-    n_updates = max(1, math.ceil(cfg.ral_passes * rows / cfg.batch_size))
-    state, train_loss = player.fit_steps(state, data, n_updates, rng)
-    return state, {
-        "reward/train_loss": train_loss,
-        "reward/holdout_loss": player.holdout_loss(state.params, data),
-        "reward/epochs": float("nan"),
-    }
+@dataclass(frozen=True)
+class Leader:
+    """What the reward sees of the agent data and how long it trains each turn.
+
+    Attributes:
+        keeps_history: aggregate all agent data (RAL) or keep only the current iteration's (PAL).
+        budget: ``holdout`` (fit until the holdout loss stops improving) or ``passes`` (``n_rew`` steps).
+        config: the budgets' settings.
+        rows: which agent rows size the budgets: ``real`` states only, or ``all`` rows with the padding.
+    """
+
+    keeps_history: bool
+    budget: Budget
+    config: LeaderConfig
+    rows: BudgetRows = "real"
+
+    def receive(self, rankings: Rankings, trajectories: Sequence[np.ndarray], rng: np.random.Generator) -> None:
+        """Add the agent trajectories ``(H, d)`` finished this iteration to the ranking data."""
+        if not self.keeps_history:
+            rankings.data.clear()
+        rankings.data.add(trajectories, rng)
+
+    def fit(
+        self, player: RewardPlayer, state: RewardState, rng: np.random.Generator
+    ) -> tuple[RewardState, dict[str, float]]:
+        """The reward player's turn; metrics ``reward/train_loss``, ``reward/holdout_loss``, ``reward/epochs``
+        and the loss's own metrics."""
+        if self.budget == "holdout":
+            return self._fit_until_converged(player, state, rng)
+        data = player.rankings.data
+        rows = data.n_real_states if self.rows == "real" else len(data.train_rows)
+        n_updates = max(1, math.ceil(self.config.ral_passes * rows / player.config.batch_size))
+        state, train_loss, metrics = player.fit_steps(state, n_updates, rng)
+        return state, {
+            **metrics,
+            "reward/train_loss": train_loss,
+            "reward/holdout_loss": player.holdout_loss(state.params, player.holdout_batch(data)),
+            "reward/epochs": float("nan"),
+        }
+
+    def _fit_until_converged(
+        self, player: RewardPlayer, state: RewardState, rng: np.random.Generator
+    ) -> tuple[RewardState, dict[str, float]]:
+        cfg, data = self.config, player.rankings.data
+        rows = len(data.train_rows)
+        if self.rows == "real":
+            rows = min(rows, max(data.n_real_states, data.horizon))
+        per_epoch = max(1, math.ceil(rows * len(data.lambdas) / player.config.batch_size))
+        holdout = player.holdout_batch(data)
+        if holdout is None:  # no holdout: a single epoch
+            state, train_loss, metrics = player.fit_steps(state, per_epoch, rng)
+            return state, {
+                **metrics,
+                "reward/train_loss": train_loss,
+                "reward/holdout_loss": float("nan"),
+                "reward/epochs": 1.0,
+            }
+        best_loss = player.holdout_loss(state.params, holdout)
+        best_params = jax.tree.map(jnp.copy, state.params)  # the update donates state's buffers
+        stale, epochs, train_loss, metrics = 0, 0, float("nan"), {}
+        while epochs < cfg.max_epochs and stale < cfg.patience:
+            state, train_loss, metrics = player.fit_steps(state, per_epoch, rng)
+            epochs += 1
+            loss = player.holdout_loss(state.params, holdout)
+            if loss < best_loss:
+                # Relative to |best|: the supremum loss is negative once the reward separates the data.
+                improved = best_loss - loss > MIN_IMPROVEMENT * abs(best_loss)
+                best_loss, best_params = loss, jax.tree.map(jnp.copy, state.params)
+                stale = 0 if improved else stale + 1
+            else:
+                stale += 1
+        state = RewardState(params=best_params, opt_state=state.opt_state)
+        return state, {
+            **metrics,
+            "reward/train_loss": train_loss,
+            "reward/holdout_loss": best_loss,
+            "reward/epochs": float(epochs),
+        }
+
+
+def make_leader(
+    name: LeaderName, config: LeaderConfig, budget: Budget | None = None, rows: BudgetRows = "real"
+) -> Leader:
+    """PAL or RAL with ``config``; ``budget`` swaps in the other leader's budget (App. D's ablation)."""
+    keeps_history = name == "ral"
+    return Leader(keeps_history, budget or ("passes" if keeps_history else "holdout"), config, rows)

@@ -13,9 +13,11 @@ imit-pal           vanilla    supremum    pal
 imit-ral           vanilla    supremum    ral
 =================  =========  ==========  ======
 
-``vanilla`` ranks the agent below the expert; ``auto`` adds the time-aligned mixtures between them
-(App. B.1); ``pref`` adds a fixed chain of offline trajectories ranked below the expert (Eq. 6).
-Adding a method means adding a row to :data:`METHODS`, not another training loop.
+Each column names an entry of one module: rankings in :mod:`rankgame.game.rankings` (``vanilla`` ranks
+the agent below the expert; ``auto`` adds the time-aligned mixtures between them, App. B.1; ``pref``
+adds a fixed chain of offline trajectories ranked below the expert, Eq. 6), losses in
+:data:`rankgame.reward.losses.LOSSES`, leaders in :mod:`rankgame.game.leaders`. Adding a method means
+adding a row to :data:`METHODS`, not another training loop.
 """
 
 from __future__ import annotations
@@ -23,10 +25,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from rankgame.reward.player import RankingLoss
+from rankgame.game.leaders import LeaderName
+from rankgame.game.rankings import RankingSource
 
-RankingSource = Literal["vanilla", "auto", "pref"]
-Leader = Literal["pal", "ral"]
+LossName = Literal["regression", "supremum"]
 
 
 @dataclass(frozen=True)
@@ -34,8 +36,8 @@ class Method:
     """Where rankings come from, which loss fits them, and which player leads."""
 
     rankings: RankingSource
-    loss: RankingLoss
-    leader: Leader
+    loss: LossName
+    leader: LeaderName
 
 
 METHODS: dict[str, Method] = {

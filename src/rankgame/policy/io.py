@@ -13,6 +13,7 @@ import jax
 import numpy as np
 
 from rankgame.atomic import atomic_write_bytes
+from rankgame.checkpoint import flatten_tree, require_finite
 from rankgame.envs.rollout import PolicyFn
 from rankgame.errors import RankGameError
 from rankgame.policy.learner import make_policy_fn
@@ -49,7 +50,9 @@ def save_policy(
     act_high: np.ndarray,
     **metadata: Any,
 ) -> Path:
-    """Write the actor of ``sac`` to ``path`` (msgpack), atomically."""
+    """Write the actor of ``sac`` to ``path`` (msgpack), atomically; a non-finite parameter raises
+    :class:`~rankgame.errors.NonFiniteError` and nothing is written."""
+    require_finite(flatten_tree("actor_params", actor_params))
     header = {
         "format": POLICY_FORMAT,
         "version": POLICY_VERSION,

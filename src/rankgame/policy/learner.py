@@ -14,12 +14,13 @@ import gymnasium as gym
 import jax
 import numpy as np
 
+from rankgame.absorbing import absorbing_obs, flag_obs
 from rankgame.checkpoint import flatten_tree, unflatten_tree
 from rankgame.envs.make import env_spec
 from rankgame.envs.rollout import PolicyFn, to_env_action
+from rankgame.errors import NonFiniteError
 from rankgame.policy.buffer import ReplayBuffer
 from rankgame.policy.sac import SAC, RewardFn, SACConfig, SACState, env_reward
-from rankgame.reward.features import absorbing_obs, flag_obs
 
 
 @dataclass
@@ -44,14 +45,13 @@ class SACLearner:
             the environment's first reset; the same seed gives the same numbers.
         reward_fn: labels sampled batches with rewards (default: the environment's reward).
         store_env_reward: keep the environment reward in the buffer (needed by :func:`env_reward`).
-        absorbing: DAC-style absorbing states (see :mod:`rankgame.reward.features`): observations get
+        absorbing: DAC-style absorbing states (see :mod:`rankgame.absorbing`): observations get
             an absorbing flag, and a terminal step is stored as ``s -> s_abs`` followed by the
             self-loop ``s_abs -> s_abs``, neither with a terminal mask; SAC values ending an
             episode at exactly ``r(s_abs) / (1 - gamma)`` with the current learned reward.
-        absorbing_transitions: with ``absorbing``, store the absorbing transitions above (default);
-            if False, observations keep their (zero) flag but a terminal step is stored with a
-            terminal mask, so ending an episode is worth exactly 0 whatever the learned reward
-            (the authors' code's handling, kept for comparison).
+
+    A non-finite action or observation, or a non-finite SAC loss, raises
+    :class:`~rankgame.errors.NonFiniteError` before it reaches the environment or the buffer's users.
     """
 
     def __init__(
@@ -62,13 +62,11 @@ class SACLearner:
         reward_fn: RewardFn = env_reward,
         store_env_reward: bool = True,
         absorbing: bool = False,
-        absorbing_transitions: bool = True,
     ) -> None:
         self.env = env
         self.spec = env_spec(env)
         self.config = config
         self.absorbing = absorbing
-        self.absorbing_transitions = absorbing and absorbing_transitions
         sac_obs_dim = self.spec.obs_dim + int(absorbing)
         self.sac = SAC(sac_obs_dim, self.spec.act_dim, config, reward_fn=reward_fn, absorbing=absorbing)
         self.state: SACState = self.sac.init(jax.random.key(seed))
@@ -88,8 +86,12 @@ class SACLearner:
             noise = self.rng.standard_normal((1, self.spec.act_dim)).astype(np.float32)
             obs = self._policy_obs(self._obs)[None]
             act_norm = np.asarray(self.sac.act(self.state.actor_params, obs, noise))[0]
+            if not np.all(np.isfinite(act_norm)):
+                raise NonFiniteError("the policy's action")
         act = to_env_action(act_norm, self.spec.act_low, self.spec.act_high)
         next_obs, rew, terminated, truncated, _ = self.env.step(act)
+        if not (np.all(np.isfinite(next_obs)) and np.isfinite(rew)):
+            raise NonFiniteError(f"the observation or reward of {self.spec.env_id}")
         self._store(self._obs, act_norm, next_obs, bool(terminated), float(rew))
         result = StepResult(self._obs, act_norm, next_obs, bool(terminated), bool(truncated))
         self.env_steps += 1
@@ -143,9 +145,8 @@ class SACLearner:
         if not self.absorbing:
             self.buffer.add(obs=obs, acts=act_norm, next_obs=next_obs, dones=float(terminated), **extra)
             return
-        if not terminated or not self.absorbing_transitions:
-            done = float(terminated)
-            self.buffer.add(obs=flag_obs(obs), acts=act_norm, next_obs=flag_obs(next_obs), dones=done, **extra)
+        if not terminated:
+            self.buffer.add(obs=flag_obs(obs), acts=act_norm, next_obs=flag_obs(next_obs), dones=0.0, **extra)
             return
         s_abs = absorbing_obs(self.spec.obs_dim)
         self.buffer.add(obs=flag_obs(obs), acts=act_norm, next_obs=s_abs, dones=0.0, **extra)
@@ -168,7 +169,11 @@ class SACLearner:
         self._updates_owed -= n_updates
         batches = self.buffer.sample(self.rng, n_updates, cfg.batch_size)
         self.state, metrics = self.sac.update(self.state, batches, reward_params)
-        return {key: float(value) for key, value in metrics.items()}
+        values = {key: float(value) for key, value in metrics.items()}
+        for name in ("critic", "actor", "alpha"):
+            if not np.isfinite(values[f"losses/{name}"]):
+                raise NonFiniteError(f"the SAC {name} loss" if name != "alpha" else "the SAC temperature")
+        return values
 
     def policy(self, deterministic: bool = True) -> PolicyFn:
         """The current policy as ``obs (obs_dim,) -> action (act_dim,)`` in environment units."""

@@ -14,10 +14,9 @@ loop rescales them to the environment's bounds.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any, Literal
+from typing import Any
 
 import flax.linen as nn
 import flax.struct
@@ -26,7 +25,9 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from rankgame.absorbing import absorbing_flag, absorbing_obs
 from rankgame.errors import nonfinite_fields, require
+from rankgame.nets import MLP
 
 Batch = dict[str, jax.Array]
 #: ``(reward_params, batch) -> rews`` of shape ``(batch_size,)``.
@@ -71,11 +72,6 @@ class SACConfig:
     """Gradient steps per environment step (update-to-data ratio)."""
     buffer_size: int = 1_000_000
     """Replay buffer capacity in transitions."""
-    weight_init: Literal["lecun", "torch"] = "lecun"
-    """Initial weights of the actor and critics: ``lecun`` (Flax's default: truncated-normal weights of
-    variance 1/fan_in, zero biases) or ``torch`` (PyTorch's ``nn.Linear`` default, which SpinningUp's
-    SAC, the paper's, keeps: weights and biases uniform in +-1/sqrt(fan_in))."""
-
     def validate(self) -> None:
         """Raise ``ValueError`` with a one-line reason if the values make no sense together."""
         checks = [
@@ -90,7 +86,6 @@ class SACConfig:
             (self.buffer_size >= self.batch_size, "buffer_size must be at least batch_size"),
             (all(h > 0 for h in self.hidden_sizes), "hidden_sizes must be positive"),
             (self.start_steps >= 0 and self.update_after >= 0, "start_steps and update_after must be >= 0"),
-            (self.weight_init in ("lecun", "torch"), "weight_init must be lecun or torch"),
         ]
         require(checks)
 
@@ -110,47 +105,15 @@ def sac_preset(name: str, **overrides: Any) -> SACConfig:
     return replace(SAC_PRESETS[name], **overrides)
 
 
-def _symmetric_uniform(bound: float) -> Callable[..., jax.Array]:
-    """Initializer drawing uniformly from ``[-bound, bound]``."""
-
-    def init(key: jax.Array, shape: tuple[int, ...], dtype: Any = jnp.float32) -> jax.Array:
-        return jax.random.uniform(key, shape, dtype, -bound, bound)
-
-    return init
-
-
-def dense(width: int, fan_in: int, weight_init: str) -> nn.Dense:
-    """A dense layer of ``width`` outputs initialized as ``weight_init`` says (:attr:`SACConfig.weight_init`)."""
-    if weight_init == "lecun":
-        return nn.Dense(width)
-    bound = 1.0 / math.sqrt(fan_in)
-    return nn.Dense(width, kernel_init=_symmetric_uniform(bound), bias_init=_symmetric_uniform(bound))
-
-
-class MLP(nn.Module):
-    """ReLU MLP with a linear output layer; ``weight_init`` as :attr:`SACConfig.weight_init`."""
-
-    hidden_sizes: tuple[int, ...]
-    out_dim: int
-    weight_init: str = "lecun"
-
-    @nn.compact
-    def __call__(self, x: jax.Array) -> jax.Array:
-        for width in self.hidden_sizes:
-            x = nn.relu(dense(width, x.shape[-1], self.weight_init)(x))
-        return dense(self.out_dim, x.shape[-1], self.weight_init)(x)
-
-
 class Actor(nn.Module):
     """Tanh-squashed Gaussian policy head: ``obs (B, obs_dim) -> (mean, log_std)``, each ``(B, act_dim)``."""
 
     hidden_sizes: tuple[int, ...]
     act_dim: int
-    weight_init: str = "lecun"
 
     @nn.compact
     def __call__(self, obs: jax.Array) -> tuple[jax.Array, jax.Array]:
-        out = MLP(self.hidden_sizes, 2 * self.act_dim, self.weight_init)(obs)
+        out = MLP(self.hidden_sizes, 2 * self.act_dim)(obs)
         mean, log_std = jnp.split(out, 2, axis=-1)
         return mean, jnp.clip(log_std, LOG_STD_MIN, LOG_STD_MAX)
 
@@ -159,7 +122,6 @@ class TwinCritic(nn.Module):
     """Two independent Q networks evaluated together: ``(obs, acts) -> q`` of shape ``(2, B)``."""
 
     hidden_sizes: tuple[int, ...]
-    weight_init: str = "lecun"
 
     @nn.compact
     def __call__(self, obs: jax.Array, acts: jax.Array) -> jax.Array:
@@ -171,7 +133,7 @@ class TwinCritic(nn.Module):
             out_axes=0,
             axis_size=2,
         )
-        return batched(self.hidden_sizes, 1, self.weight_init)(jnp.concatenate([obs, acts], axis=-1))[..., 0]
+        return batched(self.hidden_sizes, 1)(jnp.concatenate([obs, acts], axis=-1))[..., 0]
 
 
 def squashed_gaussian_sample(mean: jax.Array, log_std: jax.Array, noise: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -221,7 +183,7 @@ class SAC:
     Attributes:
         reward_fn: how each sampled batch is labelled with rewards (static: changing it recompiles).
         absorbing: the last observation entry is a DAC-style absorbing flag (see
-            :mod:`rankgame.reward.features`). The absorbing state ``s_abs`` loops on itself whatever the
+            :mod:`rankgame.absorbing`). The absorbing state ``s_abs`` loops on itself whatever the
             action, so its value is known exactly, ``r(s_abs) / (1 - gamma)``: the critic's target
             uses it for every transition into ``s_abs`` instead of bootstrapping the critic there, and
             the actor and temperature losses ignore rows that start in ``s_abs``. Bootstrapping the
@@ -241,8 +203,8 @@ class SAC:
 
     def __post_init__(self) -> None:
         self.config.validate()
-        self.actor = Actor(self.config.hidden_sizes, self.act_dim, self.config.weight_init)
-        self.critic = TwinCritic(self.config.hidden_sizes, self.config.weight_init)
+        self.actor = Actor(self.config.hidden_sizes, self.act_dim)
+        self.critic = TwinCritic(self.config.hidden_sizes)
         cfg = self.config
         self.target_entropy = float(-self.act_dim if cfg.target_entropy is None else cfg.target_entropy)
         self.actor_tx = optax.adam(cfg.actor_lr)
@@ -297,8 +259,9 @@ class SAC:
         # Rows whose actor/temperature loss counts: all, or those not starting in s_abs.
         live = jnp.ones_like(rews)
         if self.absorbing:
-            next_value = jnp.where(batch["next_obs"][:, -1] > 0.5, self.absorbing_value(reward_params), next_value)
-            live = 1.0 - batch["obs"][:, -1]
+            into_absorbing = absorbing_flag(batch["next_obs"]) > 0.5
+            next_value = jnp.where(into_absorbing, self.absorbing_value(reward_params), next_value)
+            live = 1.0 - absorbing_flag(batch["obs"])
         target = jax.lax.stop_gradient(rews + cfg.gamma * (1.0 - batch["dones"]) * next_value)
 
         def critic_loss_fn(critic_params: Any) -> tuple[jax.Array, jax.Array]:
@@ -352,7 +315,7 @@ class SAC:
 
     def absorbing_value(self, reward_params: Any) -> jax.Array:
         """Value ``()`` of the absorbing state, ``r(s_abs) / (1 - gamma)``: it loops on itself forever."""
-        s_abs = jnp.zeros((1, self.obs_dim), jnp.float32).at[:, -1].set(1.0)
+        s_abs = jnp.asarray(absorbing_obs(self.obs_dim - 1))[None]
         loop = {"obs": s_abs, "next_obs": s_abs, "acts": jnp.zeros((1, self.act_dim)), "rews": jnp.zeros(1)}
         return self.reward_fn(reward_params, loop)[0] / (1.0 - self.config.gamma)
 

@@ -1,28 +1,44 @@
-"""Ranking losses of the reward player, as pure functions ``loss(raw, targets, ...) -> (scalar, metrics)``.
+"""Ranking losses of the reward player, registered by name in :data:`LOSSES`, each with its reward bound.
 
-* :func:`regression_ranking_loss` is L_k (Eq. 2) and its shaped, generalized form SL_k (App. B.1,
-  Eq. 8): every input is regressed to the target of the behavior it came from. With only agent
-  (target 0) and expert (target k) groups of equal size it is exactly L_k / 2; with the auto
-  mixtures it is SL_k.
-* :func:`snippet_regression_loss` regresses the summed reward of a snippet of ``l`` steps of an
-  offline trajectory to ``k_i l`` (App. B.3), scaled by ``1 / l^2``.
-* :func:`supremum_loss` is the loss of the IMIT ablation (App. D.3): maximize the gap between the
-  bounded reward on expert and on agent inputs, ``-(E_E[r] - E_pi[r])``.
-* :func:`weighted_sum` combines losses, e.g. ``alpha L_k(online) + (1 - alpha) L_k(offline)`` (Eq. 6).
+A :class:`RankingLoss` maps the raw reward outputs of a batch to a scalar loss and its metrics, and
+declares how the reward handed to the policy is bounded to ``[-r_max, r_max]``:
 
-Regression losses act on the *raw* network output, not the clipped reward: the targets lie inside
-the reward bound, so an output beyond the bound still gets a gradient pulling it back, instead of
-the zero gradient a clip would give (a reward stuck at the bound forever).
+* ``regression``: L_k (Eq. 2) and its shaped, generalized form SL_k (App. B.1, Eq. 8), every input
+  regressed to the target of the behavior it came from (:func:`regression_ranking_loss`). With only
+  agent (target 0) and expert (target k) groups of equal size it is exactly L_k / 2; with the auto
+  mixtures it is SL_k. It acts on the *raw* output, not the bounded reward: the targets lie inside
+  the bound, so an output beyond it still gets a gradient pulling it back, instead of the zero
+  gradient a clip would give. The policy sees the hard clip.
+* ``supremum``: the loss of the IMIT ablation (App. D.3), maximize the gap between the bounded reward
+  on expert and on agent inputs, ``-(E_E[r] - E_pi[r])`` (:func:`supremum_loss`). The bound must be
+  inside the loss, so it is the smooth ``r_max tanh(x / r_max)``, whose gradient stays alive, and the
+  policy sees that same bounded reward.
+
+Also here: :func:`snippet_regression_loss` (App. B.3) for snippets of offline trajectories, and
+:func:`weighted_sum`, which combines losses as in Eq. 6. A new loss is a new entry of :data:`LOSSES`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Literal
 
 import jax
 import jax.numpy as jnp
 
 Metrics = dict[str, jax.Array]
+Bound = Literal["clip", "tanh"]
+
+#: ``(raw (B,), targets (B,), is_expert (B,), weights (B,), r_max) -> (loss (), metrics)``.
+LossFn = Callable[[jax.Array, jax.Array, jax.Array, jax.Array, float], tuple[jax.Array, Metrics]]
+
+
+def bound_reward(raw: jax.Array, r_max: float, bound: Bound) -> jax.Array:
+    """Map raw outputs ``(B,)`` into ``[-r_max, r_max]``: a hard ``clip`` or a smooth ``tanh``."""
+    if bound == "clip":
+        return jnp.clip(raw, -r_max, r_max)
+    return r_max * jnp.tanh(raw / r_max)
 
 
 def regression_ranking_loss(
@@ -86,3 +102,43 @@ def weighted_sum(terms: Sequence[tuple[float, tuple[jax.Array, Metrics]]]) -> tu
         metrics[f"term{i}/loss"] = loss
         metrics.update({f"term{i}/{k}": v for k, v in term_metrics.items()})
     return total, metrics
+
+
+@dataclass(frozen=True)
+class RankingLoss:
+    """A ranking loss of the reward player and the bound it puts on the reward the policy sees.
+
+    Attributes:
+        fn: the loss on one batch (see :data:`LossFn`); rows of weight 0 count in no term.
+        bound: how rewards handed to the policy are bounded (:func:`bound_reward`).
+        regresses_targets: whether the loss regresses rewards to per-behavior targets, so that offline
+            ranked chains (the pref rankings, Eq. 6) can be fit with the same targets.
+    """
+
+    fn: LossFn
+    bound: Bound
+    regresses_targets: bool
+
+    def __call__(
+        self, raw: jax.Array, targets: jax.Array, is_expert: jax.Array, weights: jax.Array, r_max: float
+    ) -> tuple[jax.Array, Metrics]:
+        return self.fn(raw, targets, is_expert, weights, r_max)
+
+
+def _regression(
+    raw: jax.Array, targets: jax.Array, _is_expert: jax.Array, weights: jax.Array, _r_max: float
+) -> tuple[jax.Array, Metrics]:
+    return regression_ranking_loss(raw, targets, weights)
+
+
+def _supremum(
+    raw: jax.Array, _targets: jax.Array, is_expert: jax.Array, weights: jax.Array, r_max: float
+) -> tuple[jax.Array, Metrics]:
+    return supremum_loss(bound_reward(raw, r_max, "tanh"), is_expert, weights)
+
+
+#: The ranking losses by name (the ``loss`` column of :data:`rankgame.game.methods.METHODS`).
+LOSSES: dict[str, RankingLoss] = {
+    "regression": RankingLoss(_regression, bound="clip", regresses_targets=True),
+    "supremum": RankingLoss(_supremum, bound="tanh", regresses_targets=False),
+}

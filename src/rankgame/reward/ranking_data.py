@@ -11,7 +11,8 @@ the *state-based* mixup that the paper compares against its trajectory mixup (Ap
 the regularizer).
 
 Mixtures are formed when sampled, so memory grows with the agent data only, not with the grid.
-A random (shuffled) ``holdout_fraction`` of rows, drawn as rows arrive, is kept for early stopping.
+A random (shuffled) ``holdout_fraction`` of rows, drawn as rows arrive, is kept out of training: the
+leader judges convergence on it (:mod:`rankgame.game.leaders`).
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+
+from rankgame.reward.inputs import InputLayout
 
 
 class RankingData:
@@ -29,12 +32,10 @@ class RankingData:
         lambdas: ``(G,)`` mixture weights, ``0`` (agent) first and ``1`` (expert) last.
         targets: ``(G,)`` regression target of each mixture (non-decreasing).
         holdout_fraction: share of agent rows kept out of training.
-        flag_index: column of the absorbing flag in the inputs, to count real (non-padding) states;
-            ``None`` counts every row as real.
+        layout: the reward inputs' layout, to count real (non-padding) states; ``None`` counts every
+            row as real.
         time_aligned: mix agent step ``t`` with expert step ``t`` (trajectory mixup, the paper's auto
             rankings) or with an expert step drawn uniformly from ``[0, H)`` (state mixup).
-        holdout_real_only: hold out real agent states only, never absorbing padding (which repeats
-            one state in every short trajectory, so a held-out copy is also a training input).
     """
 
     def __init__(
@@ -43,9 +44,8 @@ class RankingData:
         lambdas: np.ndarray,
         targets: np.ndarray,
         holdout_fraction: float,
-        flag_index: int | None = None,
+        layout: InputLayout | None = None,
         time_aligned: bool = True,
-        holdout_real_only: bool = False,
     ) -> None:
         if expert.ndim != 3 or len(expert) == 0:
             raise ValueError(f"expert inputs must have shape (M, H, d) with M >= 1, got {expert.shape}")
@@ -59,9 +59,8 @@ class RankingData:
         self.lambdas = lambdas.astype(np.float32)
         self.targets = targets.astype(np.float32)
         self.holdout_fraction = holdout_fraction
-        self.flag_index = flag_index
+        self.layout = layout
         self.time_aligned = time_aligned
-        self.holdout_real_only = holdout_real_only
         self.horizon, self.dim = expert.shape[1], expert.shape[2]
         self.agent = np.zeros((0, self.horizon, self.dim), np.float32)
         self.train_rows = np.zeros((0, 2), np.int64)
@@ -89,13 +88,11 @@ class RankingData:
             raise ValueError(f"agent inputs have shape {new.shape[1:]}, expected {(self.horizon, self.dim)}")
         first = len(self.agent)
         self.agent = np.concatenate([self.agent, new])
-        real = new[..., self.flag_index] == 0.0 if self.flag_index is not None else np.ones(new.shape[:2], bool)
+        real = self.layout.is_real(new) if self.layout is not None else np.ones(new.shape[:2], bool)
         self.n_real_states += int(real.sum())
         idx, t = np.meshgrid(np.arange(first, len(self.agent)), np.arange(self.horizon), indexing="ij")
         rows = np.stack([idx.ravel(), t.ravel()], axis=1)
         held = rng.uniform(size=len(rows)) < self.holdout_fraction
-        if self.holdout_real_only:
-            held &= real.ravel()
         experts = rng.integers(0, len(self.expert), size=int(held.sum()))
         expert_steps = self._expert_steps(rng, rows[held, 1])
         self.train_rows = np.concatenate([self.train_rows, rows[~held]])
@@ -164,8 +161,5 @@ class RankingData:
         """Inverse of :meth:`state_dict` (the expert data, grid and targets come from the constructor)."""
         self.agent = state["ranking/agent"]
         self.train_rows = state["ranking/train_rows"]
-        held = state["ranking/holdout_rows"]
-        if held.shape[1] == 3:  # checkpoints before state mixup: the expert step is the agent's
-            held = np.column_stack([held, held[:, 1]])
-        self.holdout_rows = held
+        self.holdout_rows = state["ranking/holdout_rows"]
         self.n_real_states = int(state["ranking/n_real_states"])

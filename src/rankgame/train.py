@@ -1,0 +1,90 @@
+"""``train``: run (or resume) the ranking game from a :class:`~rankgame.config.TrainConfig`.
+
+The one entry point of ``rankgame train`` and of the Python API::
+
+    from rankgame import TrainConfig, train
+    summary = train(TrainConfig(env="Hopper-v5", steps=50_000, out="runs/demo"), callback=lambda step, row: True)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import shlex
+import sys
+from pathlib import Path
+from typing import Any
+
+from rankgame.config import TrainConfig, config_to_json
+from rankgame.envs.make import env_spec, make_env
+from rankgame.game.data import DataSource, resolve_expert, resolve_preferences
+from rankgame.game.loop import LOG_COLUMNS, RankingGame
+from rankgame.game.methods import METHODS
+from rankgame.game.switch import plan_switch
+from rankgame.run import Callback, RunSettings, open_run, run
+
+
+def train(
+    config: TrainConfig,
+    *,
+    expert: DataSource = None,
+    preferences: DataSource = None,
+    switch_expert: DataSource = None,
+    callback: Callback | None = None,
+    command: str | None = None,
+) -> dict[str, Any]:
+    """Run the ranking game to ``config.steps`` (continuing the run in ``config.out`` with ``config.resume``).
+
+    Args:
+        config: every setting of the run; ``config.out`` is its folder.
+        expert: the expert data to imitate, overriding ``config.expert``: a path (or ``minari:ID``), a
+            :class:`~rankgame.data.trajectories.TrajectoryFile` or a sequence of trajectories.
+        preferences: the pref methods' offline trajectories, overriding ``config.preferences``.
+        switch_expert: the expert after ``config.switch.at``, overriding ``config.switch.expert``.
+        callback: ``callback(step, row)`` after every evaluation, with the metrics row logged to
+            ``metrics.csv``; returning False stops the run (after a checkpoint: it can be resumed).
+        command: the command line recorded in ``config.json`` and saved policies (default: ``sys.argv``).
+    Returns:
+        ``env``, ``method``, ``steps``, ``env_steps`` (reached), ``stopped_early``, ``out`` and the last
+        evaluation's ``eval_return``, ``normalized_score`` (and ``eval_success`` where the task reports it).
+    Raises:
+        RankGameError: a one-line reason for bad settings or data, a run that produced a non-finite
+            value, or one stopped by a signal (:class:`~rankgame.errors.RunInterrupted`).
+    """
+    config = dataclasses.replace(config, out=Path(config.out))
+    config.validate()
+    as_json = config_to_json(config)
+    if expert is not None and not isinstance(expert, str | Path):
+        as_json["expert"] = "(in memory)"
+    settings = RunSettings(
+        config.out,
+        config.steps,
+        config.eval_every,
+        config.checkpoint_every,
+        config.resume,
+        config.tensorboard,
+        config.progress,
+        f"{config.method} {config.env}",
+    )
+    resumed = open_run(settings, as_json)
+    env = make_env(config.env)  # bad tasks or data fail before the run folder is created
+    spec = env_spec(env)
+    env.close()
+    expert_data = resolve_expert(
+        expert if expert is not None else config.expert, config.env, spec, config.expert_trajectories, "expert data"
+    )
+    prefs = None
+    if METHODS[config.method].rankings == "pref":
+        prefs = resolve_preferences(preferences if preferences is not None else config.preferences, config.env, spec)
+    game = RankingGame(config, expert_data, prefs, plan_switch(config, spec, switch_expert))
+    game.command = command or shlex.join(sys.argv)
+    row = run(game, settings, resumed, as_json, LOG_COLUMNS, game.command, callback)
+    keys = ("eval_return", "normalized_score", "eval_success")
+    return {
+        "env": game.env_id,
+        "method": config.method,
+        "steps": config.steps,
+        "env_steps": row["env_steps"],
+        "stopped_early": row["stopped_early"],
+        "out": str(config.out),
+        **{key: row[key] for key in keys if key in row},
+    }
