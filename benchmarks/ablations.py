@@ -86,10 +86,10 @@ ABLATIONS: dict[str, Ablation] = {
         "how the targets of the auto mixtures are shaped: linear, or exp with temperature beta",
         (
             Variant("exp-beta-m1", "rank-pal-auto"),
-            Variant("linear", "rank-pal-auto", "--schedule linear"),
-            Variant("exp-beta-1", "rank-pal-auto", "--beta 1"),
-            Variant("exp-beta-m2", "rank-pal-auto", "--beta -2"),
-            Variant("exp-beta-m5", "rank-pal-auto", "--beta -5"),
+            Variant("linear", "rank-pal-auto", "--rankings.schedule linear"),
+            Variant("exp-beta-1", "rank-pal-auto", "--rankings.beta 1"),
+            Variant("exp-beta-m2", "rank-pal-auto", "--rankings.beta -2"),
+            Variant("exp-beta-m5", "rank-pal-auto", "--rankings.beta -5"),
         ),
     ),
     "policy-updates": Ablation(
@@ -108,13 +108,13 @@ ABLATIONS: dict[str, Ablation] = {
         " or n_rew = passes |D| / batch steps, for each leader; -all-rows: budgets count the absorbing padding",
         (
             Variant("pal-holdout", "rank-pal-auto"),
-            Variant("pal-holdout-all-rows", "rank-pal-auto", "--reward.budget-rows all"),
-            Variant("pal-passes-6", "rank-pal-auto", "--reward.budget passes --reward.ral-passes 6"),
-            Variant("pal-passes-30", "rank-pal-auto", "--reward.budget passes --reward.ral-passes 30"),
+            Variant("pal-holdout-all-rows", "rank-pal-auto", "--ablation.budget-rows all"),
+            Variant("pal-passes-6", "rank-pal-auto", "--ablation.budget passes --leader.ral-passes 6"),
+            Variant("pal-passes-30", "rank-pal-auto", "--ablation.budget passes --leader.ral-passes 30"),
             Variant("ral-passes-1", "rank-ral-auto"),
-            Variant("ral-passes-6", "rank-ral-auto", "--reward.ral-passes 6"),
-            Variant("ral-holdout", "rank-ral-auto", "--reward.budget holdout"),
-            Variant("ral-passes-1-all-rows", "rank-ral-auto", "--reward.budget-rows all"),
+            Variant("ral-passes-6", "rank-ral-auto", "--leader.ral-passes 6"),
+            Variant("ral-holdout", "rank-ral-auto", "--ablation.budget holdout"),
+            Variant("ral-passes-1-all-rows", "rank-ral-auto", "--ablation.budget-rows all"),
         ),
     ),
     "reward-range": Ablation(
@@ -122,10 +122,10 @@ ABLATIONS: dict[str, Ablation] = {
         "the performance gap k, with the reward bounded to [-k, k] (R_max = k)",
         (
             Variant("k-10", "rank-pal-auto"),
-            Variant("k-1", "rank-pal-auto", "--k 1 --reward.r-max 1"),
-            Variant("k-5", "rank-pal-auto", "--k 5 --reward.r-max 5"),
-            Variant("k-20", "rank-pal-auto", "--k 20 --reward.r-max 20"),
-            Variant("k-50", "rank-pal-auto", "--k 50 --reward.r-max 50"),
+            Variant("k-1", "rank-pal-auto", "--rankings.k 1 --reward.r-max 1"),
+            Variant("k-5", "rank-pal-auto", "--rankings.k 5 --reward.r-max 5"),
+            Variant("k-20", "rank-pal-auto", "--rankings.k 20 --reward.r-max 20"),
+            Variant("k-50", "rank-pal-auto", "--rankings.k 50 --reward.r-max 50"),
         ),
     ),
     "regularizer": Ablation(
@@ -136,8 +136,8 @@ ABLATIONS: dict[str, Ablation] = {
             Variant("auto", "rank-pal-auto"),
             Variant("vanilla-wd-1e-4", "rank-pal-vanilla"),
             Variant("vanilla-wd-1e-2", "rank-pal-vanilla", "--reward.weight-decay 1e-2"),
-            Variant("vanilla-sn", "rank-pal-vanilla", "--reward.spectral-norm"),
-            Variant("state-mixup", "rank-pal-auto", "--mixup state"),
+            Variant("vanilla-sn", "rank-pal-vanilla", "--ablation.spectral-norm"),
+            Variant("state-mixup", "rank-pal-auto", "--ablation.mixup state"),
         ),
     ),
     "expert-trajectories": Ablation(
@@ -164,9 +164,9 @@ ABLATIONS: dict[str, Ablation] = {
         "a share of the offline labels replaced by another trajectory's rank (the paper uses Door)",
         (
             Variant("noise-0", "rank-pal-pref"),
-            Variant("noise-0.2", "rank-pal-pref", "--pref-noise 0.2"),
-            Variant("noise-0.4", "rank-pal-pref", "--pref-noise 0.4"),
-            Variant("noise-0.6", "rank-pal-pref", "--pref-noise 0.6"),
+            Variant("noise-0.2", "rank-pal-pref", "--rankings.pref-noise 0.2"),
+            Variant("noise-0.4", "rank-pal-pref", "--rankings.pref-noise 0.4"),
+            Variant("noise-0.6", "rank-pal-pref", "--rankings.pref-noise 0.6"),
         ),
     ),
 }

@@ -18,21 +18,20 @@ import time
 from pathlib import Path
 
 from rankgame.envs.make import make_env
-from rankgame.game.loop import RankingGame, TrainConfig
+from rankgame.config import TrainConfig
 from rankgame.policy.learner import SACLearner
 from rankgame.policy.sac import sac_preset
+from rankgame.training import build_game
 
 
 def time_game(cfg: TrainConfig, warmup: int) -> float:
     """Env-steps/s of the ranking game's loop after ``warmup`` steps (same work as ``rankgame train``)."""
-    game = RankingGame(cfg)
+    game = build_game(cfg)
     start = None
     for step in range(1, cfg.steps + 1):
         if step == warmup + 1:
             start = time.perf_counter()
-        game.env_step()
-        if step % game.n_pol == 0:
-            game.reward_turn()
+        game.step(step)
         if step % cfg.eval_every == 0:
             game.evaluate()
     assert start is not None

@@ -140,7 +140,7 @@ def test_common_options_and_a_namespaced_env(tmp_path: Path) -> None:
     )
     [(_, job)] = jobs
     assert job.out == tmp_path / "runs" / "preference-noise" / "noise-0.2" / "rankgame__Door-v0__s3"
-    assert job.train_args == "--preset modern --pref-noise 0.2"  # the variant's own options come last
+    assert job.train_args == "--preset modern --rankings.pref-noise 0.2"  # the variant's own options come last
 
 
 def test_success_metric_is_the_success_rate_in_percent(tmp_path: Path) -> None:

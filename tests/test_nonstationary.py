@@ -11,14 +11,15 @@ import pytest
 from conftest import TOY_TRAIN_ARGS, assert_one_line_error, run_cli
 
 from rankgame.cli import main
+from rankgame.config import SwitchConfig, TrainConfig
 from rankgame.data.trajectories import load_trajectories
 from rankgame.envs.make import env_spec, make_env
 from rankgame.envs.toy import POINT_GOAL_ID, POINT_GOAL_MIRRORED_ID
 from rankgame.envs.variants import HEAVY_MASS_SCALE, HOPPER_BACKWARD_ID, HOPPER_HEAVY_ID
-from rankgame.game.loop import RankingGame, TrainConfig
 from rankgame.policy.io import load_policy
 from rankgame.policy.sac import SACConfig
 from rankgame.reward.player import RewardConfig
+from rankgame.training import build_game
 
 
 def test_hopper_variants_change_the_reward_or_the_masses_only() -> None:
@@ -45,9 +46,7 @@ def _switching_config(expert: Path, mirrored: Path, **changes: object) -> TrainC
         env=POINT_GOAL_ID,
         method="rank-ral-auto",  # keeps all agent data, to check that it carries over
         expert=expert,
-        switch_at=400,
-        switch_env=POINT_GOAL_MIRRORED_ID,
-        switch_expert=mirrored,
+        switch=SwitchConfig(at=400, env=POINT_GOAL_MIRRORED_ID, expert=mirrored),
         steps=800,
         sac=replace(SACConfig(), hidden_sizes=(16,), batch_size=32, start_steps=100, update_after=100),
         reward=replace(RewardConfig(), hidden_sizes=(16,), batch_size=64),
@@ -58,28 +57,27 @@ def _switching_config(expert: Path, mirrored: Path, **changes: object) -> TrainC
 def test_a_switch_moves_the_game_to_the_new_task_and_expert(
     toy_expert_file: Path, toy_mirrored_expert_file: Path, tmp_path: Path
 ) -> None:
-    game = RankingGame(_switching_config(toy_expert_file, toy_mirrored_expert_file))
+    game = build_game(_switching_config(toy_expert_file, toy_mirrored_expert_file))
     for step in range(1, 401):
-        game.env_step()
-        if step % game.n_pol == 0:
-            game.reward_turn()
-    old_rows = len(game.data.holdout_rows)
-    game.switch()
+        game.step(step)
+    data = game.rankings.data
+    old_rows = len(data.holdout_rows)
+    assert game.switch is not None and game.switch.due(401)
+    game.apply_switch()
     mirrored = load_trajectories(toy_mirrored_expert_file)
     assert game.learner.env.spec.id == game.eval_env.spec.id == POINT_GOAL_MIRRORED_ID
-    np.testing.assert_allclose(game.data.expert[0, :, 0], mirrored.trajectories[0].obs[:40, 0])
+    np.testing.assert_allclose(data.expert[0, :, 0], mirrored.trajectories[0].obs[:40, 0])
     assert game.expert_return == pytest.approx(mirrored.returns.mean())
-    assert len(game.data.holdout_rows) == old_rows and len(game.data.agent) == 10  # agent data carries over
+    assert len(data.holdout_rows) == old_rows and len(data.agent) == 10  # agent data carries over
     game.env_step()
     assert game.learner.env_steps == 401
     # A run resumed from a checkpoint written after the switch continues on the new task.
-    game.save(tmp_path / "checkpoint.npz", {"wall_s": 0.0})
-    resumed = RankingGame(_switching_config(toy_expert_file, toy_mirrored_expert_file))
+    resumed = build_game(_switching_config(toy_expert_file, toy_mirrored_expert_file))
     assert resumed.learner.env.spec.id == POINT_GOAL_ID
-    resumed.restore(tmp_path / "checkpoint.npz")
+    resumed.restore(*game.checkpoint())
     assert resumed.learner.env.spec.id == POINT_GOAL_MIRRORED_ID
-    np.testing.assert_array_equal(resumed.data.expert, game.data.expert)
-    np.testing.assert_array_equal(resumed.data.holdout_rows, game.data.holdout_rows)
+    np.testing.assert_array_equal(resumed.rankings.data.expert, data.expert)
+    np.testing.assert_array_equal(resumed.rankings.data.holdout_rows, data.holdout_rows)
     assert resumed.expert_return == game.expert_return
 
 
@@ -111,21 +109,22 @@ def test_bad_switch_settings_give_one_line_errors(
     toy_expert_file: Path, toy_mirrored_expert_file: Path, tmp_path: Path
 ) -> None:
     base = ["train", *TOY_TRAIN_ARGS, "--expert", str(toy_expert_file), "--steps", "800", "--out", str(tmp_path / "x")]
-    assert_one_line_error(run_cli(*base, "--switch-at", "400"), "--switch-at needs --switch-env or --switch-expert")
-    assert_one_line_error(run_cli(*base, "--switch-env", POINT_GOAL_MIRRORED_ID), "--switch-at needs")
-    late = [*base, "--switch-at", "800", "--switch-env", POINT_GOAL_MIRRORED_ID]
-    assert_one_line_error(run_cli(*late), "--switch-at must lie between 0 and --steps 800")
-    other_spaces = [*base, "--switch-at", "400", "--switch-env", "Hopper-v5"]
+    assert_one_line_error(run_cli(*base, "--switch.at", "400"), "--switch.at needs --switch.env or --switch.expert")
+    assert_one_line_error(run_cli(*base, "--switch-env", POINT_GOAL_MIRRORED_ID), "--switch.at needs")  # old spelling
+    late = [*base, "--switch.at", "800", "--switch.env", POINT_GOAL_MIRRORED_ID]
+    assert_one_line_error(run_cli(*late), "--switch.at must lie between 0 and --steps 800")
+    other_spaces = [*base, "--switch.at", "400", "--switch.env", "Hopper-v5"]
     assert_one_line_error(
-        run_cli(*other_spaces), "--switch-env Hopper-v5 has (obs_dim, act_dim, horizon) = (11, 3, 1000)"
+        run_cli(*other_spaces), "--switch.env Hopper-v5 has (obs_dim, act_dim, horizon) = (11, 3, 1000)"
     )
     wrong_task = [*base, "--switch-at", "400", "--switch-expert", str(toy_mirrored_expert_file)]
     assert_one_line_error(run_cli(*wrong_task), "recorded on rankgame/PointGoalMirrored-v0, not rankgame/PointGoal-v0")
 
 
 def test_a_switch_to_the_backward_hopper_imitates_its_shipped_expert() -> None:
-    backward = RankingGame(TrainConfig(steps=2000, switch_at=1000, switch_env=HOPPER_BACKWARD_ID))
-    assert backward.switch_expert is not None and backward.switch_expert.env_id == HOPPER_BACKWARD_ID
-    assert backward.switch_expert.returns.mean() > 1500  # it hops backward
-    heavy = RankingGame(TrainConfig(steps=2000, switch_at=1000, switch_env=HOPPER_HEAVY_ID))
-    assert heavy.switch_expert is None  # no shipped data: the Hopper-v5 expert throughout
+    backward = build_game(TrainConfig(steps=2000, switch=SwitchConfig(at=1000, env=HOPPER_BACKWARD_ID)))
+    assert backward.switch is not None and backward.switch.expert is not None
+    assert backward.switch.expert.env_id == HOPPER_BACKWARD_ID
+    assert backward.switch.expert.returns.mean() > 1500  # it hops backward
+    heavy = build_game(TrainConfig(steps=2000, switch=SwitchConfig(at=1000, env=HOPPER_HEAVY_ID)))
+    assert heavy.switch is not None and heavy.switch.expert is None  # no shipped data: the Hopper-v5 expert

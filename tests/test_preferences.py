@@ -14,17 +14,20 @@ import pytest
 from conftest import TOY_TRAIN_ARGS, assert_one_line_error, run_cli
 
 from rankgame.cli import main
+from rankgame.config import TrainConfig
 from rankgame.data.preferences import episodes_from_replay, ranking_order, shipped_preferences_path
 from rankgame.data.trajectories import TrajectoryFile, load_trajectories, save_trajectories
 from rankgame.envs.make import make_env
 from rankgame.envs.rollout import rollout
 from rankgame.envs.toy import POINT_GOAL_ID
 from rankgame.errors import RankGameError
-from rankgame.game.loop import RankingGame, TrainConfig
-from rankgame.reward.losses import snippet_regression_loss
+from rankgame.game.rankings import Rankings, RankingsConfig, build_rankings
+from rankgame.reward.inputs import InputLayout
+from rankgame.reward.losses import LOSSES, snippet_regression_loss
 from rankgame.reward.offline_rankings import OfflineRankings
 from rankgame.reward.player import RewardConfig, RewardPlayer
 from rankgame.reward.ranking_data import RankingData
+from rankgame.training import build_game
 
 
 def _buffer(episodes: list[tuple[int, bool]], first_value: float = 0.0) -> dict[str, np.ndarray]:
@@ -157,19 +160,21 @@ def test_tabular_fit_regresses_each_offline_trajectory_to_its_rank_target() -> N
     rng = np.random.default_rng(0)
     data.add([np.tile(eye[0], (horizon, 1))], rng)
     cfg = RewardConfig(hidden_sizes=(32,), lr=3e-3, weight_decay=0.0, batch_size=512)
-    player = RewardPlayer(5, "s", "regression", cfg, offline=chain)
-    state, loss = player.fit_steps(player.init(jax.random.key(0)), data, 2000, rng)
+    layout = InputLayout(4, 0, "s")
+    player = RewardPlayer(layout, LOSSES["regression"], cfg, Rankings(data, chain, offline_weight=0.3))
+    state, _, metrics = player.fit_steps(player.init(jax.random.key(0)), 2000, rng)
     fitted = np.asarray(player.reward(state.params, eye))
     np.testing.assert_allclose(fitted, [0.0, 0.0, 10 / 3, 20 / 3, 10.0], atol=0.2)
-    with pytest.raises(ValueError, match="regression"):
-        RewardPlayer(5, "s", "supremum", cfg, offline=chain)
+    assert {"reward/term0/loss", "reward/term1/loss"} <= metrics.keys()  # Eq. 6's two terms
+    with pytest.raises(ValueError, match="regresses targets"):
+        build_rankings("pref", RankingsConfig(), expert, layout, 0.0, LOSSES["supremum"], preferences=ranked)
 
 
 def test_pref_targets_follow_the_schedule_along_the_ranked_chain(toy_expert_file: Path, tmp_path: Path) -> None:
     prefs = save_trajectories(tmp_path / "prefs.npz", POINT_GOAL_ID, _file([3.0, 1.0, 2.0, 0.0]).trajectories)
     cfg = TrainConfig(env=POINT_GOAL_ID, method="rank-ral-pref", expert=toy_expert_file, preferences=prefs)
-    game = RankingGame(cfg)
-    chain = game.player.offline
+    game = build_game(cfg)
+    chain = game.rankings.offline
     assert chain is not None and chain.n_behaviors == 5
     # exp schedule with beta = -1 at 0, 1/4, ..., 1 of the way from 0 to k = 10.
     expected = 10 * np.expm1(-np.arange(5) / 4) / np.expm1(-1.0)
@@ -178,7 +183,7 @@ def test_pref_targets_follow_the_schedule_along_the_ranked_chain(toy_expert_file
     returns = load_trajectories(prefs).returns
     first_obs = [load_trajectories(prefs).trajectories[i].obs[0] for i in np.argsort(returns)]
     np.testing.assert_allclose(chain.ranked[:, 0, :2], np.stack(first_obs))
-    np.testing.assert_array_equal(game.data.lambdas, [0.0, 1.0])  # the online ranking is agent vs expert
+    np.testing.assert_array_equal(game.rankings.data.lambdas, [0.0, 1.0])  # the online ranking is agent vs expert
 
 
 def test_preferences_command_and_pref_training_on_the_toy_task(toy_expert_file: Path, tmp_path: Path) -> None:
@@ -224,8 +229,9 @@ def test_bad_preference_input_gives_one_line_errors(
         run_cli(*base, "--method", "rank-ral-pref", "--reward.pref-weight", "1.5"), "pref_weight must lie in [0, 1]"
     )
     pref = [*base, "--method", "rank-ral-pref", "--preferences", str(toy_preference_file)]
-    assert_one_line_error(run_cli(*pref, "--pref-noise", "2"), "--pref-noise must lie in [0, 1]")
-    assert_one_line_error(run_cli(*base, "--pref-noise", "0.2"), "--pref-noise is used only by the pref methods")
+    assert_one_line_error(run_cli(*pref, "--rankings.pref-noise", "2"), "pref_noise must lie in [0, 1]")
+    only_pref = "--rankings.pref-noise is used only by the pref methods"
+    assert_one_line_error(run_cli(*base, "--pref-noise", "0.2"), only_pref)  # the old spelling still works
     assert_one_line_error(run_cli(*pref, "--reward.snippet-length", "41"), "snippet length must lie in [1, 40]")
     assert_one_line_error(run_cli("preferences", "--run", str(tmp_path)), "no checkpoint.npz in")
     assert_one_line_error(run_cli("preferences", "--count", "1"), "--count must be at least 2")

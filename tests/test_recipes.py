@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 import pytest
 
 from rankgame.cli import train_config_from_argv
+from rankgame.config import TrainConfig
 from rankgame.errors import RankGameError
-from rankgame.game.loop import TrainConfig
 from rankgame.game.recipes import TUNED, recipe_settings, setting_value, with_settings
 
 
@@ -39,17 +39,17 @@ def test_paper_changes_nothing_and_tuned_changes_only_listed_pairs() -> None:
     }
     assert recipe_settings("tuned", "HalfCheetah-v5", "rank-ral-auto") == {}
     assert recipe_settings("tuned", "Hopper-v5", "rank-ral-auto") == {
-        "k": 1.0,
+        "rankings.k": 1.0,
         "reward.r_max": 1.0,
         "sac.updates_per_step": 2.0,
     }
-    assert recipe_settings("tuned", "Walker2d-v5", "rank-pal-auto") == {"reward.patience": 1}
+    assert recipe_settings("tuned", "Walker2d-v5", "rank-pal-auto") == {"leader.patience": 1}
     assert recipe_settings("tuned", "rankgame/AntNoContact-v5", "rank-ral-auto") == {
-        "reward.ral_passes": 6.0,
+        "leader.ral_passes": 6.0,
         "sac.updates_per_step": 2.0,
     }
     assert recipe_settings("tuned", "Walker2d-v5", "rank-ral-auto") == {
-        "reward.ral_passes": 6.0,
+        "leader.ral_passes": 6.0,
         "sac.updates_per_step": 2.0,
     }
     with pytest.raises(ValueError, match="unknown recipe 'best'"):
@@ -71,15 +71,15 @@ def test_the_cli_applies_the_recipe_to_the_defaults_and_explicit_options_win() -
         "--reward.lr 0.0001 (overridden), --reward.weight-decay 0.01"
     )
     cfg, note = train_config_from_argv(["--recipe=tuned", "--env=Ant-v5", "--method", "rank-ral-auto"])
-    assert cfg.reward_obs == "0:27" and cfg.reward.ral_passes == 6.0 and cfg.sac.updates_per_step == 2
-    assert note is not None and note.endswith("--reward-obs 0:27, --reward.ral-passes 6.0, --sac.updates-per-step 2.0")
+    assert cfg.reward_obs == "0:27" and cfg.leader.ral_passes == 6.0 and cfg.sac.updates_per_step == 2
+    assert note is not None and note.endswith("--reward-obs 0:27, --leader.ral-passes 6.0, --sac.updates-per-step 2.0")
     keeps_paper = ["--recipe", "tuned", "--env", "HalfCheetah-v5", "--method", "rank-ral-auto"]
     cfg, note = train_config_from_argv(keeps_paper)
     assert cfg == TrainConfig(env="HalfCheetah-v5", method="rank-ral-auto")
     assert note is not None and note.endswith("the paper's apply")
     cfg, note = train_config_from_argv(["--recipe", "tuned"])  # the default task and method: Hopper-v5, PAL
-    assert cfg.k == 1.0 and cfg.reward.r_max == 1.0 and cfg.reward.patience == 1
-    assert note is not None and note.endswith("--reward.r-max 1.0, --reward.patience 1")
+    assert cfg.rankings.k == 1.0 and cfg.reward.r_max == 1.0 and cfg.leader.patience == 1
+    assert note is not None and note.endswith("--reward.r-max 1.0, --leader.patience 1")
     cfg, note = train_config_from_argv(["--env", "Ant-v5"])
     assert cfg.reward_obs == "all" and note is None
     with pytest.raises(RankGameError, match="unknown recipe"):

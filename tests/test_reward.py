@@ -7,12 +7,25 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rankgame.reward.features import trajectory_features
-from rankgame.reward.losses import regression_ranking_loss, supremum_loss, weighted_sum
-from rankgame.reward.nets import SpectralDense, bound_reward, feature_columns, parse_obs_columns
+from rankgame.game.leaders import Leader, LeaderConfig, make_leader
+from rankgame.game.rankings import Rankings
+from rankgame.nets import SpectralDense
+from rankgame.reward.inputs import InputLayout, parse_obs_columns
+from rankgame.reward.losses import LOSSES, bound_reward, regression_ranking_loss, supremum_loss, weighted_sum
 from rankgame.reward.player import RewardConfig, RewardPlayer, RewardState
 from rankgame.reward.ranking_data import RankingData
 from rankgame.reward.targets import lambda_grid, target_schedule
+
+
+def _layout(dim: int) -> InputLayout:
+    """State-only reward inputs of ``dim`` entries, the last one the absorbing flag."""
+    return InputLayout(dim - 1, 0, "s")
+
+
+def _player(
+    data: RankingData, dim: int, cfg: RewardConfig | None = None, loss: str = "regression", **kwargs: object
+) -> RewardPlayer:
+    return RewardPlayer(_layout(dim), LOSSES[loss], cfg or RewardConfig(), Rankings(data), **kwargs)  # type: ignore[arg-type]
 
 
 def test_exp_schedule_matches_the_published_targets() -> None:
@@ -75,17 +88,17 @@ def test_bounds_keep_rewards_inside_and_tanh_keeps_gradients() -> None:
 def test_absorbing_padding_of_an_early_terminated_episode() -> None:
     obs = np.arange(8, dtype=np.float32).reshape(4, 2)  # T = 3 steps
     acts = np.full((3, 1), 0.5, np.float32)
-    feats = trajectory_features(obs, acts, terminated=True, horizon=5, reward_input="sa")
+    feats = InputLayout(2, 1, "sa").episode(obs, acts, terminated=True, horizon=5)
     assert feats.shape == (5, 2 + 1 + 1)
     np.testing.assert_array_equal(feats[:3, :2], obs[:3])  # real states s_0..s_2
     np.testing.assert_array_equal(feats[:3, 2], 0.0)  # flag off
     np.testing.assert_array_equal(feats[3:], [[0, 0, 1, 0], [0, 0, 1, 0]])  # absorbing, zero action
-    ss = trajectory_features(obs, acts, terminated=True, horizon=5, reward_input="ss")
+    ss = InputLayout(2, 1, "ss").episode(obs, acts, terminated=True, horizon=5)
     np.testing.assert_array_equal(ss[2], [4, 5, 0, 0, 0, 1])  # last real step leads into s_abs
-    full = trajectory_features(obs, acts, terminated=False, horizon=3, reward_input="s")
+    full = InputLayout(2, 1, "s").episode(obs, acts, terminated=False, horizon=3)
     np.testing.assert_array_equal(full[:, :2], obs[:3])
     with pytest.raises(ValueError, match="cannot be aligned"):
-        trajectory_features(obs, acts, terminated=False, horizon=5, reward_input="s")
+        InputLayout(2, 1, "s").episode(obs, acts, terminated=False, horizon=5)
 
 
 def test_reward_observation_entries_are_parsed_and_mapped_to_input_columns() -> None:
@@ -103,13 +116,15 @@ def test_reward_observation_entries_are_parsed_and_mapped_to_input_columns() -> 
         with pytest.raises(ValueError, match=reason):
             parse_obs_columns(spec, 5)
     # obs_dim 3 (flag at index 3), act_dim 2, entries 0 and 2 kept:
-    assert feature_columns(3, 2, "s", (0, 2)) == (0, 2, 3)
-    assert feature_columns(3, 2, "ss", (0, 2)) == (0, 2, 3, 4, 6, 7)
-    assert feature_columns(3, 2, "sa", (0, 2)) == (0, 2, 3, 4, 5)
+    assert InputLayout(3, 2, "s").columns((0, 2)) == (0, 2, 3)
+    assert InputLayout(3, 2, "ss").columns((0, 2)) == (0, 2, 3, 4, 6, 7)
+    assert InputLayout(3, 2, "sa").columns((0, 2)) == (0, 2, 3, 4, 5)
+    assert InputLayout(3, 2, "sa").columns((0, 1, 2)) is None  # every entry: no column selection
 
 
 def test_the_reward_reads_only_its_columns() -> None:
-    player = RewardPlayer(4, "s", "regression", RewardConfig(), columns=(1, 3))
+    data = RankingData(np.zeros((1, 2, 4), np.float32), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.0)
+    player = _player(data, 4, columns=(1, 3))
     state = player.init(jax.random.key(0))
     assert state.params["params"]["MLP_0"]["Dense_0"]["kernel"].shape == (2, 64)
     x = jax.random.normal(jax.random.key(1), (8, 4))
@@ -158,17 +173,6 @@ def test_state_mixup_pairs_agent_steps_with_expert_steps_from_any_time(time_alig
         assert np.array_equal(data.holdout()[0], held_inputs)  # the holdout stays fixed
 
 
-def test_old_checkpoints_hold_out_time_aligned_pairs() -> None:
-    expert = np.arange(8, dtype=np.float32).reshape(1, 4, 2)
-    data = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.5)
-    data.add([np.zeros((4, 2), np.float32)] * 3, np.random.default_rng(0))
-    state = data.state_dict()
-    state["ranking/holdout_rows"] = state["ranking/holdout_rows"][:, :3]  # as written before state mixup
-    restored = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.5)
-    restored.load_state_dict(state)
-    np.testing.assert_array_equal(restored.holdout_rows, data.holdout_rows)
-
-
 def test_holdout_is_a_shuffled_share_of_rows() -> None:
     expert = np.zeros((2, 100, 1), np.float32)
     data = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), holdout_fraction=0.1)
@@ -182,20 +186,17 @@ def test_holdout_is_a_shuffled_share_of_rows() -> None:
     assert data.n_trajectories == 0 and len(data.train_rows) == 0
 
 
-@pytest.mark.parametrize("real_only", [False, True])
-def test_holdout_of_real_states_only_leaves_the_padding_in_training(real_only: bool) -> None:
+def test_the_holdout_is_drawn_from_every_row_padding_included() -> None:
     # Inputs (x, flag): each trajectory is 10 real steps, then 90 absorbing rows (flag 1).
     expert = np.zeros((1, 100, 2), np.float32)
     trajectory = np.zeros((100, 2), np.float32)
     trajectory[10:, 1] = 1.0
-    data = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.5, 1, holdout_real_only=real_only)
+    data = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.5, _layout(2))
     data.add([trajectory] * 40, np.random.default_rng(0))
     held_steps = data.holdout_rows[:, 1]
     assert len(data.train_rows) + len(held_steps) == 4000  # every row is either trained on or held out
-    if real_only:
-        assert held_steps.max() < 10 and 120 < len(held_steps) < 280  # half of the 400 real rows
-    else:
-        assert (held_steps >= 10).mean() > 0.8 and 1800 < len(held_steps) < 2200  # half of all rows
+    assert (held_steps >= 10).mean() > 0.8 and 1800 < len(held_steps) < 2200  # half of all rows
+    assert data.n_real_states == 400
 
 
 def test_tabular_fit_approaches_the_closed_form() -> None:
@@ -210,8 +211,8 @@ def test_tabular_fit_approaches_the_closed_form() -> None:
     data = RankingData(expert[None], np.array([0.0, 1.0]), np.array([0.0, k]), holdout_fraction=0.0)
     data.add([agent], rng)
     cfg = RewardConfig(hidden_sizes=(32,), lr=1e-3, weight_decay=0.0, batch_size=4096, r_max=10.0)
-    player = RewardPlayer(n_states, "s", "regression", cfg)
-    state, _ = player.fit_steps(player.init(jax.random.key(0)), data, 3000, rng)
+    player = _player(data, n_states, cfg)
+    state, _, _ = player.fit_steps(player.init(jax.random.key(0)), 3000, rng)
     fitted = np.asarray(player.reward(state.params, eye))
     # Expected from the empirical visitation counts of this sample.
     p_pi, p_e = agent.mean(0), expert.mean(0)
@@ -231,18 +232,18 @@ def test_spectral_dense_divides_the_kernel_by_its_largest_singular_value() -> No
 
 
 def test_a_spectrally_normalized_reward_is_1_lipschitz_and_still_fits() -> None:
-    cfg = RewardConfig(hidden_sizes=(32, 32), spectral_norm=True, weight_decay=0.0, batch_size=256)
-    player = RewardPlayer(3, "s", "regression", cfg)
+    rng = np.random.default_rng(0)
+    expert = np.full((1, 100, 3), 1.5, np.float32)
+    data = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), holdout_fraction=0.0)
+    data.add([np.full((100, 3), -1.5, np.float32)], rng)
+    cfg = RewardConfig(hidden_sizes=(32, 32), weight_decay=0.0, batch_size=256)
+    player = _player(data, 3, cfg, spectral_norm=True)
     state = player.init(jax.random.key(0))
     big = jax.tree_util.tree_map(lambda w: 50.0 * w, state.params)  # normalization undoes any scale
     x, y = jax.random.normal(jax.random.key(1), (2, 512, 3)) * 3.0
     gap = np.abs(np.asarray(player.net.apply(big, x) - player.net.apply(big, y)))
     assert np.all(gap <= np.linalg.norm(np.asarray(x - y), axis=1) + 1e-4)
-    rng = np.random.default_rng(0)
-    expert = np.full((1, 100, 3), 1.5, np.float32)
-    data = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), holdout_fraction=0.0)
-    data.add([np.full((100, 3), -1.5, np.float32)], rng)
-    state, _ = player.fit_steps(state, data, 400, rng)
+    state, _, _ = player.fit_steps(state, 400, rng)
     fitted = np.asarray(player.reward(state.params, jnp.array([[-1.5] * 3, [1.5] * 3])))
     np.testing.assert_allclose(fitted, [0.0, 1.0], atol=0.05)  # the points are ~5.2 apart: a gap of 1 fits
 
@@ -251,8 +252,9 @@ def test_supremum_player_separates_agent_and_expert() -> None:
     eye = np.eye(2, dtype=np.float32)
     data = RankingData(np.tile(eye[1], (1, 50, 1)), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.0)
     data.add([np.tile(eye[0], (50, 1))], np.random.default_rng(0))
-    player = RewardPlayer(2, "s", "supremum", RewardConfig(hidden_sizes=(16,), batch_size=64, r_max=5.0))
-    state, _ = player.fit_steps(player.init(jax.random.key(0)), data, 1000, np.random.default_rng(1))
+    player = _player(data, 2, RewardConfig(hidden_sizes=(16,), batch_size=64, r_max=5.0), loss="supremum")
+    state, _, metrics = player.fit_steps(player.init(jax.random.key(0)), 1000, np.random.default_rng(1))
+    assert metrics["reward/gap"] > 0.0  # the loss's own metric is reported
     rewards = np.asarray(player.reward(state.params, eye))
     assert rewards[1] - rewards[0] > 8.0 and np.all(np.abs(rewards) < 5.0)
 
@@ -262,118 +264,115 @@ def test_early_stopping_ends_and_keeps_the_best_holdout() -> None:
     expert = rng.normal(size=(1, 200, 3)).astype(np.float32) + 1.0
     data = RankingData(expert, lambda_grid(2), target_schedule(lambda_grid(2), 0, 10), holdout_fraction=0.1)
     data.add([rng.normal(size=(200, 3)).astype(np.float32) for _ in range(3)], rng)
-    cfg = RewardConfig(batch_size=128, patience=2, max_epochs=200)
-    player = RewardPlayer(3, "s", "regression", cfg)
+    player = _player(data, 3, RewardConfig(batch_size=128))
+    leader = make_leader("pal", LeaderConfig(patience=2, max_epochs=200))
     state = player.init(jax.random.key(0))
-    before = player.holdout_loss(state.params, data)
-    state, metrics = player.fit_until_converged(state, data, rng)
+    holdout = player.holdout_batch(data)
+    before = player.holdout_loss(state.params, holdout)
+    state, metrics = leader.fit(player, state, rng)
     assert metrics["reward/epochs"] < 200  # stopping triggered
     assert metrics["reward/holdout_loss"] < before
-    assert player.holdout_loss(state.params, data) == pytest.approx(metrics["reward/holdout_loss"], rel=1e-5)
+    assert player.holdout_loss(state.params, holdout) == pytest.approx(metrics["reward/holdout_loss"], rel=1e-5)
+    assert "reward/mse" in metrics  # the loss's own metric is reported
 
 
 def test_real_states_are_counted_without_absorbing_padding() -> None:
     expert = np.zeros((1, 4, 2), np.float32)
-    data = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.5, flag_index=1)
+    data = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.5, _layout(2))
     short = np.array([[3.0, 0.0], [4.0, 0.0], [0.0, 1.0], [0.0, 1.0]], np.float32)  # 2 real steps, 2 absorbing
     data.add([short, np.zeros((4, 2), np.float32)], np.random.default_rng(0))
     assert data.n_real_states == 2 + 4
     held = len(data.holdout_rows)
     inputs, _, _ = data.holdout(max_rows=1)
     assert held > 1 and len(inputs) == 2  # one row, both mixtures
-    restored = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.5, flag_index=1)
+    restored = RankingData(expert, np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.5, _layout(2))
     restored.load_state_dict(data.state_dict())
     assert restored.n_real_states == 6 and len(restored.holdout_rows) == held
 
 
+def _fit_steps_recorder(player: RewardPlayer, asked: list[int]) -> None:
+    """Replace the player's gradient steps with a record of how many were asked for."""
+
+    def fit_steps(state: RewardState, n: int, rng: np.random.Generator) -> tuple:
+        asked.append(n)
+        return state, 0.0, {}
+
+    player.fit_steps = fit_steps  # type: ignore[method-assign]
+
+
 @pytest.mark.parametrize(("passes", "expected"), [(1.0, 2), (2.5, 4), (0.01, 1)])
-def test_ral_budget_is_passes_over_the_real_agent_states(
-    monkeypatch: pytest.MonkeyPatch, passes: float, expected: int
-) -> None:
+def test_ral_budget_is_passes_over_the_real_agent_states(passes: float, expected: int) -> None:
     # 3 trajectories x 400 real steps (+ 100 absorbing each), batch 800: |D| = 1200 real states, so
     # one pass is ceil(1200 / 800) = 2 gradient steps and 2.5 passes are 3000 / 800 -> 4.
-    from rankgame.game.leaders import fit_reward
-
     horizon = 500
     traj = np.zeros((horizon, 2), np.float32)
     traj[400:, 1] = 1.0  # the absorbing flag marks the padding
-    data = RankingData(np.zeros((1, horizon, 2), np.float32), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.1, 1)
+    data = RankingData(
+        np.zeros((1, horizon, 2), np.float32), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.1, _layout(2)
+    )
     data.add([traj] * 3, np.random.default_rng(0))
-    player = RewardPlayer(2, "s", "regression", RewardConfig(batch_size=800, ral_passes=passes))
+    player = _player(data, 2, RewardConfig(batch_size=800))
     asked: list[int] = []
-    monkeypatch.setattr(player, "fit_steps", lambda state, data, n, rng: (asked.append(n), (state, 0.0))[1])
-    fit_reward("ral", player, player.init(jax.random.key(0)), data, np.random.default_rng(1))
+    _fit_steps_recorder(player, asked)
+    make_leader("ral", LeaderConfig(ral_passes=passes)).fit(
+        player, player.init(jax.random.key(0)), np.random.default_rng(1)
+    )
     assert asked == [expected]
 
 
-@pytest.mark.parametrize(("budget_rows", "ral_steps", "pal_epoch"), [("real", 3, 6), ("all", 4, 8)])
-def test_budget_rows_decides_whether_absorbing_padding_counts(
-    monkeypatch: pytest.MonkeyPatch, budget_rows: str, ral_steps: int, pal_epoch: int
-) -> None:
+@pytest.mark.parametrize(("rows", "ral_steps", "pal_epoch"), [("real", 3, 6), ("all", 4, 8)])
+def test_budget_rows_decides_whether_absorbing_padding_counts(rows: str, ral_steps: int, pal_epoch: int) -> None:
     # 3 trajectories x (400 real + 100 absorbing) rows, no holdout, batch 400, 2 mixtures per row.
     # RAL, one pass: real ceil(1200 / 400) = 3 steps, all ceil(1500 / 400) = 4.
     # PAL, one epoch (the only one without a holdout): real 1200 * 2 / 400 = 6, all 1500 * 2 / 400 -> 8.
-    from rankgame.game.leaders import fit_reward
-
     traj = np.zeros((500, 2), np.float32)
     traj[400:, 1] = 1.0
-    data = RankingData(np.zeros((1, 500, 2), np.float32), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.0, 1)
+    data = RankingData(np.zeros((1, 500, 2), np.float32), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.0, _layout(2))
     data.add([traj] * 3, np.random.default_rng(0))
-    player = RewardPlayer(2, "s", "regression", RewardConfig(batch_size=400, budget_rows=budget_rows))
+    player = _player(data, 2, RewardConfig(batch_size=400))
     asked: list[int] = []
-    monkeypatch.setattr(player, "fit_steps", lambda state, data, n, rng: (asked.append(n), (state, 0.0))[1])
+    _fit_steps_recorder(player, asked)
     for leader in ("ral", "pal"):
-        fit_reward(leader, player, player.init(jax.random.key(0)), data, np.random.default_rng(1))
+        make_leader(leader, LeaderConfig(), rows=rows).fit(  # type: ignore[arg-type]
+            player, player.init(jax.random.key(0)), np.random.default_rng(1)
+        )
     assert asked == [ral_steps, pal_epoch]
 
 
 @pytest.mark.parametrize("sign", [1.0, -1.0])
-def test_early_stopping_needs_a_relative_improvement_whatever_the_sign_of_the_loss(
-    monkeypatch: pytest.MonkeyPatch, sign: float
-) -> None:
-    # The holdout loss improves by 0.1% per epoch, less than min_improvement (1%): fitting stops after
+def test_early_stopping_needs_a_relative_improvement_whatever_the_sign_of_the_loss(sign: float) -> None:
+    # The holdout loss improves by 0.1% per epoch, less than MIN_IMPROVEMENT (1%): fitting stops after
     # `patience` epochs whether the loss is positive (regression) or negative (the supremum loss).
     data = RankingData(np.zeros((1, 50, 2), np.float32), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.2)
     data.add([np.ones((50, 2), np.float32)] * 2, np.random.default_rng(0))
-    cfg = RewardConfig(batch_size=16, patience=2, max_epochs=20, min_improvement=0.01)
-    player = RewardPlayer(2, "s", "regression", cfg)
+    player = _player(data, 2, RewardConfig(batch_size=16))
     losses = iter(sign * 10.0 * (1.0 - 0.001 * sign * i) for i in range(100))
-    monkeypatch.setattr(player, "_eval", lambda *args: next(losses))
-    monkeypatch.setattr(player, "fit_steps", lambda state, data, n, rng: (state, 0.0))
-    _, metrics = player.fit_until_converged(player.init(jax.random.key(0)), data, np.random.default_rng(1))
+    player.holdout_loss = lambda params, holdout: next(losses)  # type: ignore[method-assign]
+    _fit_steps_recorder(player, [])
+    leader = make_leader("pal", LeaderConfig(patience=2, max_epochs=20))
+    _, metrics = leader.fit(player, player.init(jax.random.key(0)), np.random.default_rng(1))
     assert metrics["reward/epochs"] == 2.0
     assert metrics["reward/holdout_loss"] == pytest.approx(sign * 10.0 * (1.0 - 0.002 * sign))
 
 
 @pytest.mark.parametrize(
     ("leader", "budget", "expected"),
-    [
-        ("pal", "leader", "holdout"),
-        ("ral", "leader", "passes"),
-        ("pal", "passes", "passes"),
-        ("ral", "holdout", "holdout"),
-    ],
+    [("pal", None, "holdout"), ("ral", None, "passes"), ("pal", "passes", "passes"), ("ral", "holdout", "holdout")],
 )
 def test_the_budget_option_swaps_the_leaders_budgets(
-    monkeypatch: pytest.MonkeyPatch, leader: str, budget: str, expected: str
+    monkeypatch: pytest.MonkeyPatch, leader: str, budget: str | None, expected: str
 ) -> None:
-    from rankgame.game.leaders import fit_reward
-
-    data = RankingData(np.zeros((1, 10, 2), np.float32), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.1, 1)
+    data = RankingData(np.zeros((1, 10, 2), np.float32), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.1, _layout(2))
     data.add([np.zeros((10, 2), np.float32)] * 3, np.random.default_rng(0))
-    player = RewardPlayer(2, "s", "regression", RewardConfig(batch_size=4, ral_passes=2.0, budget=budget))
+    player = _player(data, 2, RewardConfig(batch_size=4))
     used: list[str] = []
-
-    def fixed_steps(state: RewardState, data: RankingData, n: int, rng: np.random.Generator) -> tuple:
-        used.append(f"passes {n}")
-        return state, 0.0
-
-    def until_converged(state: RewardState, data: RankingData, rng: np.random.Generator) -> tuple:
-        used.append("holdout")
-        return state, {}
-
-    monkeypatch.setattr(player, "fit_steps", fixed_steps)
-    monkeypatch.setattr(player, "fit_until_converged", until_converged)
-    fit_reward(leader, player, player.init(jax.random.key(0)), data, np.random.default_rng(1))
+    asked: list[int] = []
+    _fit_steps_recorder(player, asked)
+    monkeypatch.setattr(
+        Leader, "_fit_until_converged", lambda self, player, state, rng: (used.append("holdout"), (state, {}))[1]
+    )
+    chosen = make_leader(leader, LeaderConfig(ral_passes=2.0), budget=budget)  # type: ignore[arg-type]
+    assert chosen.keeps_history == (leader == "ral")
+    chosen.fit(player, player.init(jax.random.key(0)), np.random.default_rng(1))
     # 30 real states, 2 passes of batch 4: ceil(60 / 4) = 15 gradient steps.
-    assert used == (["holdout"] if expected == "holdout" else ["passes 15"])
+    assert (used, asked) == ((["holdout"], []) if expected == "holdout" else ([], [15]))

@@ -131,19 +131,6 @@ def test_presets_differ_as_documented() -> None:
         sac_preset("fancy")
 
 
-def test_torch_init_draws_weights_and_biases_within_one_over_root_fan_in() -> None:
-    # Observations of 11 entries and 3 actions: the critics' first layer reads 14 inputs.
-    state = SAC(11, 3, SACConfig(hidden_sizes=(64,), weight_init="torch")).init(jax.random.key(0))
-    actor, critic = state.actor_params["params"]["MLP_0"], state.critic_params["params"]["VmapMLP_0"]
-    for layer, fan_in in ((actor["Dense_0"], 11), (actor["Dense_1"], 64), (critic["Dense_0"], 14)):
-        bound = 1 / np.sqrt(fan_in)
-        assert 0.9 * bound < np.abs(layer["kernel"]).max() <= bound  # fills the range
-        assert 0 < np.abs(layer["bias"]).max() <= bound
-    lecun = SAC(11, 3, SACConfig(hidden_sizes=(64,))).init(jax.random.key(0)).actor_params["params"]["MLP_0"]
-    assert not np.any(lecun["Dense_0"]["bias"])  # Flax's default: zero biases
-    assert np.std(lecun["Dense_0"]["kernel"]) > 1.5 * np.std(actor["Dense_0"]["kernel"])  # 1 / sqrt(3) of it
-
-
 def test_invalid_config_is_rejected() -> None:
     with pytest.raises(ValueError, match="gamma"):
         SACConfig(gamma=1.5).validate()
@@ -182,24 +169,16 @@ def test_same_seed_gives_identical_numbers(tiny_sac: SACConfig) -> None:
     )
 
 
-@pytest.mark.parametrize("absorbing_transitions", [True, False])
-def test_a_terminal_step_is_stored_as_the_termination_mode_says(
-    absorbing_transitions: bool, tiny_sac: SACConfig
-) -> None:
-    """Absorbing: s -> s_abs and s_abs -> s_abs, no terminal mask. Done: s -> s' with a terminal mask."""
+def test_a_terminal_step_is_stored_as_an_absorbing_transition(tiny_sac: SACConfig) -> None:
+    """s -> s_abs, then the self-loop s_abs -> s_abs, neither with a terminal mask."""
     cfg = replace(tiny_sac, start_steps=10_000)  # uniformly random actions: steps off the ledge quickly
     env = make_env("rankgame/PointGoalEdge-v0")
-    learner = SACLearner(env, cfg, seed=0, absorbing=True, absorbing_transitions=absorbing_transitions)
+    learner = SACLearner(env, cfg, seed=0, absorbing=True)
     while not learner.env_step().terminated:
         pass
     rows = {name: values[: learner.buffer.size] for name, values in learner.buffer.data.items()}
     flags_in, flags_out = rows["obs"][:, -1], rows["next_obs"][:, -1]
-    if absorbing_transitions:
-        assert learner.buffer.size == learner.env_steps + 1  # the self-loop row
-        np.testing.assert_array_equal(flags_out[-2:], [1.0, 1.0])
-        np.testing.assert_array_equal(flags_in[-2:], [0.0, 1.0])
-        assert not rows["dones"].any()
-    else:
-        assert learner.buffer.size == learner.env_steps
-        assert not flags_in.any() and not flags_out.any()
-        np.testing.assert_array_equal(rows["dones"], [0.0] * (learner.env_steps - 1) + [1.0])
+    assert learner.buffer.size == learner.env_steps + 1  # the self-loop row
+    np.testing.assert_array_equal(flags_out[-2:], [1.0, 1.0])
+    np.testing.assert_array_equal(flags_in[-2:], [0.0, 1.0])
+    assert not rows["dones"].any()

@@ -19,7 +19,7 @@ __version__ = "0.1.0"
 
 #: Public name -> the module that defines it.
 _EXPORTS = {
-    "train": "rankgame.train",
+    "train": "rankgame.training",
     "TrainConfig": "rankgame.config",
     "RankingsConfig": "rankgame.game.rankings",
     "RewardConfig": "rankgame.reward.player",
@@ -90,4 +90,4 @@ if TYPE_CHECKING:
     from rankgame.policy.sac import SACConfig
     from rankgame.reward.export import LearnedReward, export_reward, load_reward
     from rankgame.reward.player import RewardConfig
-    from rankgame.train import train
+    from rankgame.training import train

@@ -221,7 +221,7 @@ def train_config_from_argv(argv: Sequence[str]) -> tuple[TrainConfig, str | None
 
 
 def _cmd_train(argv: Sequence[str]) -> int:
-    from rankgame.train import train
+    from rankgame.training import train
 
     cfg, recipe_note = train_config_from_argv(argv)
     if recipe_note is not None:

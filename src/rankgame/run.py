@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 import math
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -122,8 +123,8 @@ def open_run(settings: RunSettings, config: dict[str, Any]) -> Resumed:
         return Resumed(None, {})
     if not ckpt.exists():
         if not started:
-            raise RankGameError(f"no run to resume in {out} (no {CHECKPOINT_NAME} or metrics.csv)")
-        print(f"{out}: the run stopped before its first checkpoint; starting it again at step 0", flush=True)
+            raise RankGameError(f"no checkpoint to resume from at {ckpt}")
+        print(f"{out}: the run stopped before its first checkpoint; starting it again at step 0", file=sys.stderr)
         return Resumed(None, {})
     metadata, arrays = load_checkpoint(ckpt)
     require_same_settings(metadata["config"], config, RUN_CONTROL_OPTIONS)

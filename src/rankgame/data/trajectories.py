@@ -1,6 +1,6 @@
 """Trajectories and the versioned trajectory file format (``.npz``), with strict validation.
 
-File format, version 1 (see ``docs/data-format.md``): one NumPy ``.npz`` archive holding the
+File format, version 1 (see ``docs/data.md``): one NumPy ``.npz`` archive holding the
 episodes concatenated along time, and where each episode starts:
 
 =================  ===========================  ==============================================

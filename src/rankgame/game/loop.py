@@ -4,7 +4,7 @@ Each iteration the policy player collects ``n_pol`` environment steps while SAC 
 steps on batches relabelled by the current reward (data sharing: the same transitions feed SAC and
 the rankings). The episodes finished in the iteration, padded with absorbing states to the horizon,
 become agent data of the rankings; the leader decides what the reward player keeps and how long it
-trains. :class:`RankingGame` is the :class:`~rankgame.run.Trainer` that :func:`rankgame.train.train`
+trains. :class:`RankingGame` is the :class:`~rankgame.run.Trainer` that :func:`rankgame.training.train`
 hands to the run harness.
 """
 

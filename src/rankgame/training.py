@@ -23,6 +23,26 @@ from rankgame.game.switch import plan_switch
 from rankgame.run import Callback, RunSettings, open_run, run
 
 
+def build_game(
+    config: TrainConfig,
+    expert: DataSource = None,
+    preferences: DataSource = None,
+    switch_expert: DataSource = None,
+) -> RankingGame:
+    """The :class:`~rankgame.game.loop.RankingGame` of ``config`` with its data resolved (see :func:`train`
+    for the data arguments); ``config`` must be valid."""
+    env = make_env(config.env)
+    spec = env_spec(env)
+    env.close()
+    expert_data = resolve_expert(
+        expert if expert is not None else config.expert, config.env, spec, config.expert_trajectories, "expert data"
+    )
+    prefs = None
+    if METHODS[config.method].rankings == "pref":
+        prefs = resolve_preferences(preferences if preferences is not None else config.preferences, config.env, spec)
+    return RankingGame(config, expert_data, prefs, plan_switch(config, spec, switch_expert))
+
+
 def train(
     config: TrainConfig,
     *,
@@ -66,16 +86,7 @@ def train(
         f"{config.method} {config.env}",
     )
     resumed = open_run(settings, as_json)
-    env = make_env(config.env)  # bad tasks or data fail before the run folder is created
-    spec = env_spec(env)
-    env.close()
-    expert_data = resolve_expert(
-        expert if expert is not None else config.expert, config.env, spec, config.expert_trajectories, "expert data"
-    )
-    prefs = None
-    if METHODS[config.method].rankings == "pref":
-        prefs = resolve_preferences(preferences if preferences is not None else config.preferences, config.env, spec)
-    game = RankingGame(config, expert_data, prefs, plan_switch(config, spec, switch_expert))
+    game = build_game(config, expert, preferences, switch_expert)  # bad tasks or data fail before OUT exists
     game.command = command or shlex.join(sys.argv)
     row = run(game, settings, resumed, as_json, LOG_COLUMNS, game.command, callback)
     keys = ("eval_return", "normalized_score", "eval_success")
