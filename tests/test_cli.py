@@ -133,7 +133,7 @@ def test_expert_run_resumes_and_trains_longer(tmp_path: Path) -> None:
     assert run_cli(*TOY_EXPERT_ARGS, "--steps", "600", "--out", str(out)).returncode == 0
     assert_one_line_error(run_cli(*TOY_EXPERT_ARGS, "--steps", "900", "--out", str(out)), "already holds a run")
     changed = run_cli(*TOY_EXPERT_ARGS, "--steps", "900", "--out", str(out), "--resume", "--sac.gamma", "0.9")
-    assert_one_line_error(changed, "--sac.gamma 0.9 differs from the checkpoint's 0.99")
+    assert_one_line_error(changed, "--sac.gamma 0.9 differs from the run's 0.99")
     resumed = run_cli(*TOY_EXPERT_ARGS, "--steps", "900", "--out", str(out), "--resume")
     assert resumed.returncode == 0, resumed.stderr
     steps = [row.split(",")[0] for row in (out / "metrics.csv").read_text().splitlines()[1:]]

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import TOY_TRAIN_ARGS, assert_one_line_error, run_cli
+from conftest import TOY_TRAIN_ARGS, assert_one_line_error, run_main
 
 from rankgame.checkpoint import flatten_tree, load_checkpoint
 from rankgame.cli import main
@@ -237,11 +237,12 @@ def test_an_existing_run_is_not_overwritten(toy_expert_file: Path, tmp_path: Pat
     assert missing.returncode != 0 and "no checkpoint to resume from" in missing.stderr
 
 
-def _one_line_error(args: list[str], fragment: str) -> None:
-    assert_one_line_error(run_cli(*args), fragment)
+def test_bad_training_input_gives_one_line_errors(
+    toy_expert_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    def _one_line_error(args: list[str], fragment: str) -> None:
+        assert_one_line_error(run_main(capsys, *args), fragment)
 
-
-def test_bad_training_input_gives_one_line_errors(toy_expert_file: Path, tmp_path: Path) -> None:
     base = ["train", *TOY_TRAIN_ARGS, "--steps", "100", "--out", str(tmp_path / "x")]
     _one_line_error([*base, "--expert", str(toy_expert_file), "--method", "gail"], "invalid choice: 'gail'")
     # Expert data of another environment:

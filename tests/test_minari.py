@@ -277,3 +277,32 @@ def test_unwritable_data_gives_one_line_errors_and_no_dataset(minari_root: Path,
     back = read_minari("custom-v0", "my/Custom-v3")
     assert back.env_id == "my/Custom-v3" and back.metadata["seed"] == 7
     assert not (minari_root / "mixed-v0").exists() and not any(p.name.startswith(".") for p in minari_root.iterdir())
+
+
+def test_the_command_line_round_trip_trains_on_a_minari_dataset(minari_root: Path, toy_expert_file: Path) -> None:
+    from conftest import TOY_TRAIN_ARGS, assert_one_line_error, run_cli
+
+    written = run_cli("data", "to-minari", str(toy_expert_file), "pointgoal/expert-v0")
+    assert written.returncode == 0, written.stderr
+    assert json.loads(written.stdout)["episodes"] == 10
+    assert_one_line_error(run_cli("data", "to-minari", str(toy_expert_file), "pointgoal/expert-v0"), "--overwrite")
+    out = minari_root.parent / "run"
+    args = [*TOY_TRAIN_ARGS, "--expert", "minari:pointgoal/expert-v0", "--steps", "400", "--eval-every", "400"]
+    trained = run_cli("train", *args, "--eval-episodes", "1", "--out", str(out))
+    assert trained.returncode == 0, trained.stderr
+    native = run_cli(
+        "train",
+        *TOY_TRAIN_ARGS,
+        "--expert",
+        str(toy_expert_file),
+        "--steps",
+        "400",
+        "--eval-every",
+        "400",
+        "--eval-episodes",
+        "1",
+        "--out",
+        str(minari_root.parent / "native"),
+    )
+    # The same data through either format: the same run, number for number.
+    assert json.loads(trained.stdout)["eval_return"] == json.loads(native.stdout)["eval_return"]

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import TOY_TRAIN_ARGS, assert_one_line_error, run_cli
+from conftest import TOY_TRAIN_ARGS, assert_one_line_error, run_main
 
 from rankgame.cli import main
 from rankgame.config import SwitchConfig, TrainConfig
@@ -106,19 +106,25 @@ def test_the_game_follows_a_changed_intent(
 
 
 def test_bad_switch_settings_give_one_line_errors(
-    toy_expert_file: Path, toy_mirrored_expert_file: Path, tmp_path: Path
+    toy_expert_file: Path, toy_mirrored_expert_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     base = ["train", *TOY_TRAIN_ARGS, "--expert", str(toy_expert_file), "--steps", "800", "--out", str(tmp_path / "x")]
-    assert_one_line_error(run_cli(*base, "--switch.at", "400"), "--switch.at needs --switch.env or --switch.expert")
-    assert_one_line_error(run_cli(*base, "--switch-env", POINT_GOAL_MIRRORED_ID), "--switch.at needs")  # old spelling
+    assert_one_line_error(
+        run_main(capsys, *base, "--switch.at", "400"), "--switch.at needs --switch.env or --switch.expert"
+    )
+    assert_one_line_error(
+        run_main(capsys, *base, "--switch-env", POINT_GOAL_MIRRORED_ID), "--switch.at needs"
+    )  # old spelling
     late = [*base, "--switch.at", "800", "--switch.env", POINT_GOAL_MIRRORED_ID]
-    assert_one_line_error(run_cli(*late), "--switch.at must lie between 0 and --steps 800")
+    assert_one_line_error(run_main(capsys, *late), "--switch.at must lie between 0 and --steps 800")
     other_spaces = [*base, "--switch.at", "400", "--switch.env", "Hopper-v5"]
     assert_one_line_error(
-        run_cli(*other_spaces), "--switch.env Hopper-v5 has (obs_dim, act_dim, horizon) = (11, 3, 1000)"
+        run_main(capsys, *other_spaces), "--switch.env Hopper-v5 has (obs_dim, act_dim, horizon) = (11, 3, 1000)"
     )
     wrong_task = [*base, "--switch-at", "400", "--switch-expert", str(toy_mirrored_expert_file)]
-    assert_one_line_error(run_cli(*wrong_task), "recorded on rankgame/PointGoalMirrored-v0, not rankgame/PointGoal-v0")
+    assert_one_line_error(
+        run_main(capsys, *wrong_task), "recorded on rankgame/PointGoalMirrored-v0, not rankgame/PointGoal-v0"
+    )
 
 
 def test_a_switch_to_the_backward_hopper_imitates_its_shipped_expert() -> None:

@@ -11,7 +11,7 @@ from pathlib import Path
 import jax
 import numpy as np
 import pytest
-from conftest import TOY_TRAIN_ARGS, assert_one_line_error, run_cli
+from conftest import TOY_TRAIN_ARGS, assert_one_line_error, run_cli, run_main
 
 from rankgame.cli import main
 from rankgame.config import TrainConfig
@@ -212,26 +212,32 @@ def test_preferences_command_and_pref_training_on_the_toy_task(toy_expert_file: 
 
 
 def test_bad_preference_input_gives_one_line_errors(
-    toy_expert_file: Path, toy_preference_file: Path, tmp_path: Path
+    toy_expert_file: Path, toy_preference_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     base = ["train", *TOY_TRAIN_ARGS, "--steps", "100", "--expert", str(toy_expert_file), "--out", str(tmp_path / "x")]
-    assert_one_line_error(run_cli(*base, "--method", "rank-pal-pref"), "no shipped preference data for 'rankgame/")
+    assert_one_line_error(
+        run_main(capsys, *base, "--method", "rank-pal-pref"), "no shipped preference data for 'rankgame/"
+    )
     hopper_prefs = str(shipped_preferences_path("Hopper-v5"))
     assert_one_line_error(
-        run_cli(*base, "--method", "rank-pal-pref", "--preferences", hopper_prefs), "recorded on Hopper-v5, not"
+        run_main(capsys, *base, "--method", "rank-pal-pref", "--preferences", hopper_prefs),
+        "recorded on Hopper-v5, not",
     )
     assert_one_line_error(
-        run_cli(*base, "--preferences", hopper_prefs), "--preferences is used only by the pref methods"
+        run_main(capsys, *base, "--preferences", hopper_prefs), "--preferences is used only by the pref methods"
     )
     one = save_trajectories(tmp_path / "one.npz", POINT_GOAL_ID, _file([1.0]).trajectories)
-    assert_one_line_error(run_cli(*base, "--method", "rank-ral-pref", "--preferences", str(one)), "at least 2")
+    assert_one_line_error(run_main(capsys, *base, "--method", "rank-ral-pref", "--preferences", str(one)), "at least 2")
     assert_one_line_error(
-        run_cli(*base, "--method", "rank-ral-pref", "--reward.pref-weight", "1.5"), "pref_weight must lie in [0, 1]"
+        run_main(capsys, *base, "--method", "rank-ral-pref", "--reward.pref-weight", "1.5"),
+        "pref_weight must lie in [0, 1]",
     )
     pref = [*base, "--method", "rank-ral-pref", "--preferences", str(toy_preference_file)]
-    assert_one_line_error(run_cli(*pref, "--rankings.pref-noise", "2"), "pref_noise must lie in [0, 1]")
+    assert_one_line_error(run_main(capsys, *pref, "--rankings.pref-noise", "2"), "pref_noise must lie in [0, 1]")
     only_pref = "--rankings.pref-noise is used only by the pref methods"
-    assert_one_line_error(run_cli(*base, "--pref-noise", "0.2"), only_pref)  # the old spelling still works
-    assert_one_line_error(run_cli(*pref, "--reward.snippet-length", "41"), "snippet length must lie in [1, 40]")
-    assert_one_line_error(run_cli("preferences", "--run", str(tmp_path)), "no checkpoint.npz in")
-    assert_one_line_error(run_cli("preferences", "--count", "1"), "--count must be at least 2")
+    assert_one_line_error(run_main(capsys, *base, "--pref-noise", "0.2"), only_pref)  # the old spelling still works
+    assert_one_line_error(
+        run_main(capsys, *pref, "--reward.snippet-length", "41"), "snippet length must lie in [1, 40]"
+    )
+    assert_one_line_error(run_main(capsys, "preferences", "--run", str(tmp_path)), "no checkpoint.npz in")
+    assert_one_line_error(run_main(capsys, "preferences", "--count", "1"), "--count must be at least 2")

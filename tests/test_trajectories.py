@@ -74,6 +74,14 @@ def test_missing_empty_and_truncated_files_are_rejected(saved: Path, tmp_path: P
     truncated.write_bytes(saved.read_bytes()[: saved.stat().st_size // 2])
     with pytest.raises(RankGameError, match="unreadable or truncated"):
         load_trajectories(truncated)
+    text = tmp_path / "notes.txt"
+    text.write_text("obs,acts\n1,2\n")
+    with pytest.raises(
+        RankGameError, match=r"notes.txt: unreadable or truncated trajectory file \(not an .npz archive\)$"
+    ):
+        load_trajectories(text)
+    with pytest.raises(RankGameError, match="is a folder; pass a rankgame trajectory file"):
+        load_trajectories(tmp_path)
 
 
 def _rewrite(path: Path, out: Path, **changes: np.ndarray) -> Path:

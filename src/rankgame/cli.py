@@ -150,7 +150,9 @@ def _resumed_config(config: Config, explicit: set[str]) -> Config:
                 f"{option_name(name)} {given[name]} differs from the run's {was.get(name)} in {out}; a resumed run "
                 "keeps its settings"
             )
-    run_control = {name: getattr(config, name) for name in RUN_CONTROL_OPTIONS if name in explicit or name == "out"}
+    run_control = {
+        name: getattr(config, name) for name in RUN_CONTROL_OPTIONS - {"resume"} if name in explicit or name == "out"
+    }
     return dataclasses.replace(config_from_json(type(config), saved), **run_control, resume=True)
 
 
@@ -429,8 +431,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if name not in COMMANDS:
         print(f"{PROG}: error: unknown command {name!r}; choose from {', '.join(COMMANDS)}", file=sys.stderr)
         return 2
-    if hasattr(signal, "SIGTERM"):  # SIGTERM stops a command as SIGINT does (runs install their own handlers)
-        signal.signal(signal.SIGTERM, _interrupt)
+    # SIGTERM stops a command as SIGINT does (a run installs its own handlers while it trains).
+    previous_sigterm = signal.signal(signal.SIGTERM, _interrupt)
     try:
         return COMMANDS[name][0](rest)
     except RunInterrupted as exc:
@@ -445,6 +447,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
+    finally:
+        signal.signal(signal.SIGTERM, previous_sigterm)
 
 
 if __name__ == "__main__":

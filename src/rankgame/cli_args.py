@@ -72,7 +72,8 @@ def add_dataclass_options(parser: argparse.ArgumentParser, default: Any, prefix:
     cls = type(default)
     hints = typing.get_type_hints(cls)
     docs = field_docs(cls)
-    group = parser.add_argument_group(prefix.rstrip(".")) if prefix else parser
+    summary = (cls.__doc__ or "").strip().split("\n\n")[0]
+    group = parser.add_argument_group(prefix.rstrip("."), " ".join(summary.split())) if prefix else parser
     for f in dataclasses.fields(cls):
         if not f.init:
             continue

@@ -158,8 +158,12 @@ def load_trajectories(path: str | Path, env_id: str | None = None) -> Trajectory
         RankGameError: with a one-line reason for a missing, truncated, malformed or mismatched file.
     """
     path = Path(path)
+    if path.is_dir():
+        raise RankGameError(f"{path} is a folder; pass a rankgame trajectory file (.npz)")
     if not path.is_file():
         raise RankGameError(f"trajectory file not found: {path}")
+    if not zipfile.is_zipfile(path):
+        raise RankGameError(f"{path}: unreadable or truncated trajectory file (not an .npz archive)")
     try:
         with np.load(path, allow_pickle=False) as archive:
             missing = {"format", "version", "metadata", *ARRAY_KEYS} - set(archive.files)

@@ -48,7 +48,7 @@ AGENT_TARGET = 0.0
 
 @dataclass(frozen=True)
 class RankingsConfig:
-    """Rankings settings (Table 4)."""
+    """Which behaviors are ranked and the regression targets they get (Table 4)."""
 
     k: float = 10.0
     """Performance gap k: expert inputs are regressed to k, agent inputs to 0."""
