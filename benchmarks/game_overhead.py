@@ -17,8 +17,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from rankgame.envs.make import make_env
 from rankgame.config import TrainConfig
+from rankgame.envs.make import make_env
 from rankgame.policy.learner import SACLearner
 from rankgame.policy.sac import sac_preset
 from rankgame.training import build_game

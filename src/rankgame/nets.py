@@ -40,4 +40,3 @@ class SpectralDense(nn.Module):
         u, _, vt = jnp.linalg.svd(jax.lax.stop_gradient(kernel), full_matrices=False)
         sigma = u[:, 0] @ kernel @ vt[0]
         return x @ (kernel / sigma) + bias
-

@@ -72,6 +72,7 @@ class SACConfig:
     """Gradient steps per environment step (update-to-data ratio)."""
     buffer_size: int = 1_000_000
     """Replay buffer capacity in transitions."""
+
     def validate(self) -> None:
         """Raise ``ValueError`` with a one-line reason if the values make no sense together."""
         checks = [
