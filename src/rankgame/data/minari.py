@@ -46,7 +46,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from rankgame.data.trajectories import Trajectory, TrajectoryFile, load_trajectories
+from rankgame.data.trajectories import Trajectory, TrajectoryFile, derived_metadata, load_trajectories
 from rankgame.errors import RankGameError
 
 #: A data path that starts with this names a local Minari dataset: ``minari:DATASET_ID``.
@@ -207,7 +207,7 @@ def read_minari(dataset_id: str, env_id: str | None = None) -> TrajectoryFile:
         raise RankGameError(f"{ref}: {_one_line(exc)}") from None
     if "random_return_mean" not in stored and isinstance(raw.get("ref_min_score"), int | float):
         stored["random_return_mean"] = float(raw["ref_min_score"])
-    metadata = {**stored, **_derived_metadata(file_env, trajectories), "minari_dataset_id": dataset_id}
+    metadata = {**stored, **derived_metadata(file_env, trajectories), "minari_dataset_id": dataset_id}
     return TrajectoryFile(env_id=file_env, trajectories=trajectories, metadata=metadata)
 
 
@@ -312,21 +312,6 @@ def _episode_trajectory(episode: Any, dims: tuple[int, int], index: int) -> Traj
         )
     except ValueError as exc:
         raise ValueError(f"episode {index}: {exc}") from None
-
-
-def _derived_metadata(env_id: str, trajectories: tuple[Trajectory, ...]) -> dict[str, Any]:
-    """The metadata entries a native file computes from its episodes: env id, dimensions, counts, returns."""
-    returns = [traj.ret for traj in trajectories]
-    return {
-        "env_id": env_id,
-        "obs_dim": int(trajectories[0].obs.shape[1]),
-        "act_dim": int(trajectories[0].acts.shape[1]),
-        "n_episodes": len(trajectories),
-        "returns": returns,
-        "return_mean": float(np.mean(returns)),
-        "return_std": float(np.std(returns)),
-        "lengths": [len(traj) for traj in trajectories],
-    }
 
 
 def _move_into_place(staging: Path, final: Path) -> None:

@@ -113,17 +113,10 @@ class TrajectoryFile:
         return TrajectoryFile(env_id, trajectories, metadata)
 
 
-def save_trajectories(path: str | Path, env_id: str, trajectories: Sequence[Trajectory], **metadata: Any) -> Path:
-    """Write trajectories to ``path`` atomically (a crash never leaves a half-written file).
-
-    The metadata is merged with env_id, dimensions, counts and return statistics.
-    """
-    if not trajectories:
-        raise ValueError("no trajectories to save")
-    path = Path(path)
+def derived_metadata(env_id: str, trajectories: Sequence[Trajectory]) -> dict[str, Any]:
+    """The metadata a trajectory file computes from its episodes: env id, dimensions, counts, returns."""
     returns = [traj.ret for traj in trajectories]
-    meta = {
-        **metadata,
+    return {
         "env_id": env_id,
         "obs_dim": int(trajectories[0].obs.shape[1]),
         "act_dim": int(trajectories[0].acts.shape[1]),
@@ -133,6 +126,17 @@ def save_trajectories(path: str | Path, env_id: str, trajectories: Sequence[Traj
         "return_std": float(np.std(returns)),
         "lengths": [len(traj) for traj in trajectories],
     }
+
+
+def save_trajectories(path: str | Path, env_id: str, trajectories: Sequence[Trajectory], **metadata: Any) -> Path:
+    """Write trajectories to ``path`` atomically (a crash never leaves a half-written file).
+
+    The metadata is merged with env_id, dimensions, counts and return statistics.
+    """
+    if not trajectories:
+        raise ValueError("no trajectories to save")
+    path = Path(path)
+    meta = {**metadata, **derived_metadata(env_id, trajectories)}
     arrays = {
         "format": np.asarray(FORMAT_NAME),
         "version": np.asarray(FORMAT_VERSION, np.int64),

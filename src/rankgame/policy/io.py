@@ -15,9 +15,9 @@ import numpy as np
 from rankgame.atomic import atomic_write_bytes
 from rankgame.checkpoint import flatten_tree, require_finite
 from rankgame.envs.rollout import PolicyFn
-from rankgame.errors import RankGameError
 from rankgame.policy.learner import make_policy_fn
 from rankgame.policy.sac import SAC, SACConfig
+from rankgame.serialized import read_header_file
 
 POLICY_FORMAT = "rankgame-policy"
 POLICY_VERSION = 1
@@ -73,16 +73,7 @@ def save_policy(
 
 def load_policy(path: str | Path) -> SavedPolicy:
     """Read a policy written by :func:`save_policy`; a one-line :class:`RankGameError` if it is not one."""
-    path = Path(path)
-    if not path.is_file():
-        raise RankGameError(f"policy file not found: {path}")
-    try:
-        payload = flax.serialization.msgpack_restore(path.read_bytes())
-        header = json.loads(payload["header"])
-    except Exception as exc:  # msgpack raises several unrelated types on corrupt input
-        raise RankGameError(f"{path}: unreadable or truncated policy file ({type(exc).__name__})") from None
-    if header.get("format") != POLICY_FORMAT or header.get("version") != POLICY_VERSION:
-        raise RankGameError(f"{path}: not a rankgame policy file of version {POLICY_VERSION}")
+    payload, header = read_header_file(path, "policy", POLICY_FORMAT, POLICY_VERSION)
     config_fields = dict(header["sac_config"])
     config_fields["hidden_sizes"] = tuple(config_fields["hidden_sizes"])
     sac = SAC(header["obs_dim"], header["act_dim"], SACConfig(**config_fields))

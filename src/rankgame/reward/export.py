@@ -27,6 +27,7 @@ from rankgame.errors import RankGameError
 from rankgame.reward.inputs import InputLayout
 from rankgame.reward.losses import bound_reward
 from rankgame.reward.nets import RewardNet
+from rankgame.serialized import read_header_file
 
 REWARD_FORMAT = "rankgame-reward"
 REWARD_VERSION = 1
@@ -126,16 +127,7 @@ def _reward_function(header: dict[str, Any]) -> Callable[[Any, dict[str, jax.Arr
 
 def load_reward(path: str | Path) -> LearnedReward:
     """Read a reward written by :func:`export_reward`; a one-line :class:`RankGameError` if it is not one."""
-    path = Path(path)
-    if not path.is_file():
-        raise RankGameError(f"reward file not found: {path}")
-    try:
-        payload = flax.serialization.msgpack_restore(path.read_bytes())
-        header = json.loads(payload["header"])
-    except Exception as exc:  # msgpack raises several unrelated types on corrupt input
-        raise RankGameError(f"{path}: unreadable or truncated reward file ({type(exc).__name__})") from None
-    if header.get("format") != REWARD_FORMAT or header.get("version") != REWARD_VERSION:
-        raise RankGameError(f"{path}: not a rankgame reward file of version {REWARD_VERSION}")
+    payload, header = read_header_file(path, "reward", REWARD_FORMAT, REWARD_VERSION)
     try:
         return LearnedReward(header["env_id"], header["input"], header, payload["params"], _reward_function(header))
     except (KeyError, TypeError, ValueError) as exc:
