@@ -201,9 +201,8 @@ def train_config_from_argv(argv: Sequence[str]) -> tuple[TrainConfig, str | None
             "--recipe",
             choices=list(RECIPES),
             default=recipe,
-            help="Per-task settings: paper (the paper's Table 4 on every task) or tuned (settings measured "
-            "better here for some task and method pairs, see rankgame.game.recipes); the defaults shown "
-            "below include the recipe, and options given explicitly override it (default: paper)",
+            help="Per-task settings: paper (Table 4 everywhere) or tuned (docs/recipes.md); the defaults "
+            "below include it, explicit options override it (default: paper)",
         )
 
     description = "Imitate an expert by playing the ranking game (RANK-PAL / RANK-RAL / IMIT)."

@@ -91,7 +91,7 @@ class RankingGame:
         """The task the policy acts in and is evaluated on (``--switch.env`` after a switch)."""
         self.command = ""
         """The command line recorded in saved policies."""
-        spec = env_spec(self.env)
+        spec = self.spec = env_spec(self.env)
         self.horizon = spec.max_episode_steps or max(len(t) for t in expert.trajectories)
         self.n_pol = cfg.policy_updates or self.horizon
         if cfg.steps < self.n_pol:
@@ -159,7 +159,7 @@ class RankingGame:
 
     def _inputs(self, trajectories: list[Trajectory] | tuple[Trajectory, ...], what: str) -> np.ndarray:
         """Reward inputs ``(n, H, d)`` of recorded trajectories, padded to the horizon."""
-        spec = self.learner.spec if hasattr(self, "learner") else env_spec(self.env)
+        spec = self.spec  # the switch task, if any, has the same spaces
         try:
             return np.stack(
                 [
