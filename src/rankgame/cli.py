@@ -16,6 +16,7 @@ import json
 import shlex
 import signal
 import sys
+import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn, TypeVar
@@ -409,8 +410,8 @@ COMMANDS = {
 }
 
 
-def _interrupt(_signum: int, _frame: Any) -> None:
-    raise KeyboardInterrupt
+def _stop_on_sigterm(signum: int, _frame: Any) -> None:
+    raise RunInterrupted("stopped by SIGTERM", signum)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -431,7 +432,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{PROG}: error: unknown command {name!r}; choose from {', '.join(COMMANDS)}", file=sys.stderr)
         return 2
     # SIGTERM stops a command as SIGINT does (a run installs its own handlers while it trains).
-    previous_sigterm = signal.signal(signal.SIGTERM, _interrupt)
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    previous_sigterm = signal.signal(signal.SIGTERM, _stop_on_sigterm) if in_main_thread else None
     try:
         return COMMANDS[name][0](rest)
     except RunInterrupted as exc:
@@ -447,7 +449,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
     finally:
-        signal.signal(signal.SIGTERM, previous_sigterm)
+        if in_main_thread:
+            signal.signal(signal.SIGTERM, previous_sigterm)
 
 
 if __name__ == "__main__":
