@@ -46,6 +46,18 @@ def test_the_public_names_are_importable_from_rankgame() -> None:
         rankgame.no_such_name  # noqa: B018
 
 
+def test_a_config_built_in_python_is_checked_like_the_command_line(tmp_path: Path) -> None:
+    from rankgame import AblationConfig
+
+    with pytest.raises(
+        RankGameError, match=r"^bad setting: ablation.budget='foo' \(choose from leader, holdout, passes\)$"
+    ):
+        train(_toy_config(tmp_path / "x", ablation=AblationConfig(budget="foo")))  # type: ignore[arg-type]
+    with pytest.raises(RankGameError, match=r"^bad setting: setting='lfx'"):
+        train(_toy_config(tmp_path / "y", setting="lfx"))
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
+
+
 def test_a_callback_stops_training_and_the_learned_reward_ranks_the_expert_first(
     toy_expert_file: Path, tmp_path: Path
 ) -> None:

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, TypeVar, Union, get_args, get_origin
 
-from rankgame.errors import RankGameError
+from rankgame.errors import RankGameError, invalid_choices
 from rankgame.game.leaders import Budget, BudgetRows, LeaderConfig
 from rankgame.game.methods import METHODS
 from rankgame.game.rankings import Mixup, RankingsConfig
@@ -132,6 +132,8 @@ class TrainConfig:
         """Raise :class:`RankGameError` with a one-line reason for settings that make no sense."""
         if self.method not in METHODS:
             raise RankGameError(f"unknown method {self.method!r}; choose from {', '.join(METHODS)}")
+        if invalid := invalid_choices(self):
+            raise RankGameError(f"bad setting: {invalid[0]}")
         method = METHODS[self.method]
         positive = {
             "--steps": self.steps,

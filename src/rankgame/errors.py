@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+import typing
+from typing import Any, Literal
 
 
 class RankGameError(Exception):
@@ -44,3 +45,19 @@ def nonfinite_fields(config: Any) -> list[str]:
         for f in dataclasses.fields(config)
         if isinstance(getattr(config, f.name), float) and not math.isfinite(getattr(config, f.name))
     ]
+
+
+def invalid_choices(config: Any, prefix: str = "") -> list[str]:
+    """``name=value (choose from ...)`` for every field of the dataclass instance ``config``, nested
+    dataclasses included, whose ``Literal`` annotation does not admit its value (the command line's
+    choices check this; configs built in Python are checked here)."""
+    hints = typing.get_type_hints(type(config))
+    problems = []
+    for f in dataclasses.fields(config):
+        value = getattr(config, f.name)
+        if dataclasses.is_dataclass(value):
+            problems += invalid_choices(value, f"{prefix}{f.name}.")
+        elif typing.get_origin(hints[f.name]) is Literal and value not in typing.get_args(hints[f.name]):
+            choices = ", ".join(map(str, typing.get_args(hints[f.name])))
+            problems.append(f"{prefix}{f.name}={value!r} (choose from {choices})")
+    return problems

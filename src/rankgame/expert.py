@@ -35,7 +35,7 @@ from rankgame.envs.rollout import (
     run_episodes,
     success_postfix,
 )
-from rankgame.errors import RankGameError
+from rankgame.errors import RankGameError, invalid_choices
 from rankgame.policy.io import load_policy, save_policy
 from rankgame.policy.learner import SACLearner
 from rankgame.policy.sac import SACConfig
@@ -81,6 +81,8 @@ class ExpertConfig:
         """Raise :class:`RankGameError` for values that make no sense."""
         if self.seed < 0:
             raise RankGameError(f"--seed must be >= 0 (got {self.seed})")
+        if invalid := invalid_choices(self):
+            raise RankGameError(f"bad setting: {invalid[0]}")
         if min(self.steps, self.eval_every, self.eval_episodes, self.checkpoint_every) <= 0:
             raise RankGameError("--steps, --eval-every, --eval-episodes and --checkpoint-every must be positive")
         if self.trajectories <= 0 or self.random_episodes <= 0:
