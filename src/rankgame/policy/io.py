@@ -76,6 +76,8 @@ def load_policy(path: str | Path) -> SavedPolicy:
     payload, header = read_header_file(path, "policy", POLICY_FORMAT, POLICY_VERSION)
     config_fields = dict(header["sac_config"])
     config_fields["hidden_sizes"] = tuple(config_fields["hidden_sizes"])
+    # Files written while SAC had a choice of initializers name it; a trained actor does not depend on it.
+    config_fields.pop("weight_init", None)
     sac = SAC(header["obs_dim"], header["act_dim"], SACConfig(**config_fields))
     template = sac.init(jax.random.key(0)).actor_params
     actor_params = flax.serialization.from_state_dict(template, payload["actor_params"])
