@@ -91,3 +91,11 @@ def test_a_checkpoint_of_something_else_is_refused_in_one_line(tmp_path: Path) -
     save_checkpoint(path, {"note": "not a run"}, {"weights": np.zeros(2)})
     with pytest.raises(RankGameError, match="not a checkpoint of a rankgame run"):
         load_checkpoint(path)
+
+
+def test_a_checkpoint_of_an_earlier_layout_is_refused_in_one_line(tmp_path: Path) -> None:
+    path = tmp_path / CHECKPOINT_NAME
+    payload = {"metadata": np.asarray('{"config": {"k": 10.0}, "env_steps": 1000}'), "sac/0": np.zeros(2)}
+    np.savez(path, **payload)  # positional keys and no layout version, as earlier versions wrote
+    with pytest.raises(RankGameError, match=r"has checkpoint layout 1; this rankgame reads layout 2: start the run"):
+        load_checkpoint(path)

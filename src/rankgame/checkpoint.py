@@ -23,6 +23,9 @@ from rankgame.errors import NonFiniteError, RankGameError
 #: File name of a run's checkpoint inside its output folder.
 CHECKPOINT_NAME = "checkpoint.npz"
 
+#: Version of the checkpoint layout (2: arrays keyed by tree path, nested configs); others are refused.
+CHECKPOINT_VERSION = 2
+
 #: Options a resumed run may change: how long it goes, how often it evaluates and checkpoints, what
 #: it records at the end, where its folder is and what it displays. All others are the run's own.
 RUN_CONTROL_OPTIONS = frozenset(
@@ -97,12 +100,13 @@ def require_finite(arrays: dict[str, np.ndarray]) -> None:
 def save_checkpoint(path: Path, metadata: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
     """Write ``arrays`` and JSON ``metadata`` atomically to ``path``; arrays must be finite."""
     require_finite(arrays)
-    payload = {"metadata": np.asarray(json.dumps(metadata)), **arrays}
+    payload = {"metadata": np.asarray(json.dumps({**metadata, "checkpoint_version": CHECKPOINT_VERSION})), **arrays}
     atomic_write(path, lambda handle: np.savez(handle, **payload))
 
 
-def load_checkpoint(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """Read a checkpoint written by :func:`save_checkpoint`."""
+def load_checkpoint(path: Path, any_layout: bool = False) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Read a checkpoint written by :func:`save_checkpoint`; one of another layout only with ``any_layout``
+    (for readers of arrays whose keys every layout shares, such as the replay buffer's)."""
     if not path.is_file():
         raise RankGameError(f"no checkpoint to resume from at {path}")
     try:
@@ -113,6 +117,12 @@ def load_checkpoint(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         raise RankGameError(f"{path}: unreadable checkpoint ({exc})") from None
     if not isinstance(metadata, dict) or not {"config", "env_steps"} <= metadata.keys():
         raise RankGameError(f"{path}: not a checkpoint of a rankgame run (no config or step count)")
+    version = metadata.get("checkpoint_version", 1)
+    if version != CHECKPOINT_VERSION and not any_layout:
+        raise RankGameError(
+            f"{path} has checkpoint layout {version}; this rankgame reads layout {CHECKPOINT_VERSION}: start the run "
+            "again in another folder"
+        )
     return metadata, arrays
 
 

@@ -115,7 +115,7 @@ def sample_preferences(run: Path, out: Path, count: int, seed: int, command: str
         raise RankGameError(f"--seed must be >= 0 (got {seed})")
     if not (Path(run) / "checkpoint.npz").is_file():
         raise RankGameError(f"no checkpoint.npz in {run}: pass the folder of a `rankgame expert` run")
-    metadata, arrays = load_checkpoint(Path(run) / "checkpoint.npz")
+    metadata, arrays = load_checkpoint(Path(run) / "checkpoint.npz", any_layout=True)  # buffer keys never changed
     env_id = metadata.get("config", {}).get("env")
     if not isinstance(env_id, str):
         raise RankGameError(f"{run}/checkpoint.npz does not say which environment it was trained on")
