@@ -102,6 +102,26 @@ TOY_TRAIN_ARGS = (
 )
 
 
+#: Command-line options of a small, fast adversarial game with the PPO player on the toy task.
+TOY_PPO_ARGS = (
+    "--env",
+    "rankgame/PointGoal-v0",
+    "--ppo.rollout-steps",
+    "256",
+    "--reward.batch-size",
+    "256",
+    "--no-progress",
+    "--no-tensorboard",
+)
+
+
+def toy_train_args(method: str) -> tuple[str, ...]:
+    """:data:`TOY_TRAIN_ARGS` or :data:`TOY_PPO_ARGS`, whichever player ``method`` uses."""
+    from rankgame.game.methods import METHODS
+
+    return TOY_PPO_ARGS if METHODS[method].policy == "ppo" else TOY_TRAIN_ARGS
+
+
 def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
     """Run ``rankgame`` as a user would, in a fresh process."""
     return subprocess.run(

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import TOY_TRAIN_ARGS, assert_one_line_error, run_main
+from conftest import TOY_TRAIN_ARGS, assert_one_line_error, run_main, toy_train_args
 
 from rankgame.checkpoint import flatten_tree, load_checkpoint
 from rankgame.cli import main
@@ -90,10 +90,11 @@ def test_the_game_learns_to_stay_on_a_ledge_it_could_step_off(
 def test_every_method_runs(toy_expert_file: Path, toy_preference_file: Path, tmp_path: Path) -> None:
     for method, pieces in METHODS.items():
         out = tmp_path / method
-        args = [*TOY_TRAIN_ARGS, "--method", method, "--expert", str(toy_expert_file), "--steps", "480"]
-        if pieces.rankings == "pref":
+        steps = "512" if pieces.policy == "ppo" else "480"  # whole PPO rollouts of 256 steps
+        args = [*toy_train_args(method), "--method", method, "--expert", str(toy_expert_file), "--steps", steps]
+        if pieces.uses_preferences:
             args += ["--preferences", str(toy_preference_file)]
-        assert main(["train", *args, "--eval-every", "480", "--eval-episodes", "1", "--out", str(out)]) == 0
+        assert main(["train", *args, "--eval-every", steps, "--eval-episodes", "1", "--out", str(out)]) == 0
         last = _rows(out)[-1]
         for column in ("eval_return", "reward/train_loss", "reward/agent", "reward/expert", "losses/critic"):
             assert np.isfinite(float(last[column])), (method, column, last)

@@ -12,10 +12,12 @@ from conftest import TOY_TRAIN_ARGS, assert_one_line_error, run_main
 
 from rankgame.cli import main
 from rankgame.config import SwitchConfig, TrainConfig
+from rankgame.data.experts import shipped_expert_path
 from rankgame.data.trajectories import load_trajectories
 from rankgame.envs.make import env_spec, make_env
 from rankgame.envs.toy import POINT_GOAL_ID, POINT_GOAL_MIRRORED_ID
 from rankgame.envs.variants import HEAVY_MASS_SCALE, HOPPER_BACKWARD_ID, HOPPER_HEAVY_ID
+from rankgame.errors import RankGameError
 from rankgame.policy.io import load_policy
 from rankgame.policy.sac import SACConfig
 from rankgame.reward.player import RewardConfig
@@ -134,3 +136,25 @@ def test_a_switch_to_the_backward_hopper_imitates_its_shipped_expert() -> None:
     assert backward.switch.expert.returns.mean() > 1500  # it hops backward
     heavy = build_game(TrainConfig(steps=2000, switch=SwitchConfig(at=1000, env=HOPPER_HEAVY_ID)))
     assert heavy.switch is not None and heavy.switch.expert is None  # no shipped data: the Hopper-v5 expert
+
+
+def test_the_pref_methods_may_change_the_task_but_not_the_expert(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Their offline chain is ranked below the first expert: a switch env's shipped expert is refused.
+    out = tmp_path / "x"
+    base = ["train", "--method", "rank-pal-pref", "--steps", "2000", "--switch.at", "1000", "--out", str(out)]
+    refused = run_main(capsys, *base, "--switch.env", HOPPER_BACKWARD_ID)
+    assert_one_line_error(refused, f"--switch.env {HOPPER_BACKWARD_ID} brings its shipped expert")
+    assert "rankgame/HopperHeavy-v5" in refused.stderr and "--method other than rank-pal-pref" in refused.stderr
+    assert refused.returncode == 1 and not out.exists()
+    with pytest.raises(RankGameError, match="brings its shipped expert"):
+        TrainConfig(method="rank-ral-pref", steps=2000, switch=SwitchConfig(at=1000, env=HOPPER_BACKWARD_ID)).validate()
+    # A change of dynamics alone keeps the first expert (and the offline chain ranked below it).
+    heavy = TrainConfig(method="rank-pal-pref", steps=2000, switch=SwitchConfig(at=1000, env=HOPPER_HEAVY_ID))
+    heavy.validate()
+    game = build_game(heavy)
+    assert game.switch is not None and game.switch.env_id == HOPPER_HEAVY_ID and game.switch.expert is None
+    # A switch expert given in Python is refused too.
+    with pytest.raises(RankGameError, match="switch expert cannot be combined with the pref methods"):
+        build_game(heavy, switch_expert=shipped_expert_path(HOPPER_BACKWARD_ID))

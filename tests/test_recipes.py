@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import json
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import pytest
+from conftest import assert_one_line_error, run_main
 
 from rankgame.cli import train_config_from_argv
-from rankgame.config import TrainConfig
+from rankgame.config import TrainConfig, config_to_json
 from rankgame.errors import RankGameError
 from rankgame.game.recipes import TUNED, recipe_settings, setting_value, with_settings
 
@@ -84,3 +87,46 @@ def test_the_cli_applies_the_recipe_to_the_defaults_and_explicit_options_win() -
     assert cfg.reward_obs == "all" and note is None
     with pytest.raises(RankGameError, match="unknown recipe"):
         train_config_from_argv(["--recipe", "fancy"])
+
+
+@pytest.mark.parametrize(
+    ("option", "message"),
+    [
+        ("--recipe", "unknown recipe 'fancy'; choose from paper, tuned"),
+        ("--preset", "unknown preset 'fancy'; choose from paper, modern"),
+    ],
+)
+def test_an_unknown_recipe_or_preset_is_a_command_line_error(
+    option: str, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    for args in ([option, "fancy"], [f"{option}=fancy", "--env", "Ant-v5"]):
+        result = run_main(capsys, "train", *args, "--out", str(tmp_path / "x"))
+        assert_one_line_error(result, message)
+        assert result.returncode == 2 and result.stderr.startswith("rankgame train: error: ")
+    assert not (tmp_path / "x").exists()
+
+
+def _saved_run(out: Path, config: TrainConfig) -> Path:
+    out.mkdir()
+    (out / "config.json").write_text(json.dumps({"command": "rankgame train", **config_to_json(config)}))
+    return out
+
+
+def test_a_resumed_run_takes_the_recipe_of_its_own_task_and_method(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pair = ("HalfCheetah-v5", "rank-pal-auto")
+    tuned = with_settings(TrainConfig(env=pair[0], method=pair[1], steps=5000), recipe_settings("tuned", *pair))
+    out = _saved_run(tmp_path / "tuned", replace(tuned, out=tmp_path / "tuned"))
+    # The command that started it, less --env and --method: the folder says which pair it is.
+    cfg, note = train_config_from_argv(["--out", str(out), "--resume", "--recipe", "tuned", "--steps", "6000"])
+    assert cfg == replace(tuned, out=out, resume=True, steps=6000) and note is None
+    cfg, _ = train_config_from_argv(["--out", str(out), "--resume", "--recipe", "tuned", "--env", pair[0]])
+    assert cfg == replace(tuned, out=out, resume=True)
+    # --no-resume after --resume starts a fresh run: the recipe is then that of the defaults.
+    cfg, _ = train_config_from_argv(["--out", str(out), "--resume", "--no-resume", "--recipe", "tuned"])
+    assert cfg.env == "Hopper-v5" and not cfg.resume
+    # A run started with the paper's settings keeps them: --recipe tuned on resume is refused by name.
+    paper = _saved_run(tmp_path / "paper", TrainConfig(env=pair[0], method=pair[1], out=tmp_path / "paper"))
+    refused = run_main(capsys, "train", "--out", str(paper), "--resume", "--recipe", "tuned")
+    assert_one_line_error(refused, "--reward.lr 0.0001 differs from the run's 0.001")

@@ -170,3 +170,23 @@ def test_namespaced_ids_name_their_shipped_files_with_a_double_underscore(tmp_pa
     message = "no shipped data for 'rankgame/Other-v0' (available: Hopper-v5, rankgame/HopperBackward-v5); make some"
     with pytest.raises(RankGameError, match=re.escape(message)):
         shipped_path(tmp_path, "rankgame/Other-v0", "data", "make some")
+
+
+def test_no_shipped_data_errors_list_every_id_whose_shipped_data_resolves() -> None:
+    from rankgame.data import shipped_ids
+    from rankgame.data.experts import shipped_expert_path
+    from rankgame.data.preferences import PREFERENCE_DIR, shipped_preferences_path
+    from rankgame.envs.variants import ANT_NO_CONTACT_ID, HOPPER_HEAVY_ID, HUMANOID_NO_CONTACT_ID
+
+    lookups = {
+        "expert data": (shipped_expert_path, shipped_envs()),
+        "preference data": (shipped_preferences_path, shipped_ids(PREFERENCE_DIR)),
+    }
+    assert {ANT_NO_CONTACT_ID, HUMANOID_NO_CONTACT_ID} <= set(shipped_envs())
+    for what, (lookup, resolving) in lookups.items():
+        for env_id in resolving:
+            assert lookup(env_id).is_file(), (what, env_id)
+        with pytest.raises(RankGameError) as info:
+            lookup(HOPPER_HEAVY_ID)
+        listed = re.search(r"\(available: (.*)\);", str(info.value))
+        assert listed is not None and listed.group(1).split(", ") == resolving, (what, str(info.value))

@@ -4,8 +4,8 @@
 Options are generated from the config dataclasses (see :mod:`rankgame.cli_args`). A ``--preset``
 picks the defaults the other options start from, and ``--help`` shows that preset's values. With
 ``--resume`` a run takes its settings from its folder; options given explicitly must agree with them.
-Every user error ends in one line on stderr and a non-zero exit status (1; 130 or 143 for a run
-stopped by SIGINT or SIGTERM after its checkpoint).
+Every user error ends in one line on stderr and a non-zero exit status (1; 2 for a command line that is
+itself wrong; 130 or 143 for a run stopped by SIGINT or SIGTERM after its checkpoint).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn, TypeVar
 
 from rankgame.cli_args import add_dataclass_options, dataclass_from_args, explicit_dests
-from rankgame.errors import RankGameError, RunInterrupted
+from rankgame.errors import RankGameError, RunInterrupted, UsageError
 
 if TYPE_CHECKING:
     from rankgame.config import TrainConfig
@@ -108,7 +108,7 @@ def _config_with_sac_preset(
 
     preset = _value_from_argv(argv, "--preset", default_preset)
     if preset not in SAC_PRESETS:
-        raise RankGameError(f"unknown preset {preset!r}; choose from {', '.join(SAC_PRESETS)}")
+        raise UsageError(f"unknown preset {preset!r}; choose from {', '.join(SAC_PRESETS)}")
     default = make_config(sac=SAC_PRESETS[preset])
     parser = _Parser(prog=f"{PROG} {command}", usage=f"{PROG} {command} [options]", description=description)
     parser.add_argument(
@@ -124,25 +124,36 @@ def _config_with_sac_preset(
     return config, explicit
 
 
+def _saved_settings(out: Path) -> dict[str, Any] | None:
+    """The settings of the run in ``out`` (its checkpoint's, else its ``config.json``); None if it has none."""
+    from rankgame.checkpoint import CHECKPOINT_NAME, load_checkpoint
+
+    if (out / CHECKPOINT_NAME).is_file():
+        return load_checkpoint(out / CHECKPOINT_NAME)[0]["config"]
+    if not (out / "config.json").is_file():
+        return None
+    try:
+        saved = json.loads((out / "config.json").read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise RankGameError(f"{out / 'config.json'}: unreadable run settings ({exc})") from None
+    if not isinstance(saved, dict):
+        raise RankGameError(f"{out / 'config.json'}: unreadable run settings (not a JSON object)")
+    saved.pop("command", None)
+    return saved
+
+
 def _resumed_config(config: Config, explicit: set[str]) -> Config:
     """With ``--resume``, the run's own settings from its folder, run-control options given explicitly
     applied; an explicit option that differs from the run's is refused by name. Without ``--resume``, or
     for a folder with no saved settings (the harness then says why it cannot resume), ``config``."""
-    from rankgame.checkpoint import CHECKPOINT_NAME, RUN_CONTROL_OPTIONS, flatten_options, load_checkpoint, option_name
+    from rankgame.checkpoint import RUN_CONTROL_OPTIONS, flatten_options, option_name
     from rankgame.config import config_from_json, config_to_json
 
     out = Path(config.out)  # type: ignore[attr-defined]
     if not config.resume:  # type: ignore[attr-defined]
         return config
-    if (out / CHECKPOINT_NAME).is_file():
-        saved = load_checkpoint(out / CHECKPOINT_NAME)[0]["config"]
-    elif (out / "config.json").is_file():
-        try:
-            saved = json.loads((out / "config.json").read_text())
-        except (OSError, json.JSONDecodeError) as exc:
-            raise RankGameError(f"{out / 'config.json'}: unreadable run settings ({exc})") from None
-        saved.pop("command", None)
-    else:
+    saved = _saved_settings(out)
+    if saved is None:
         return config
     given, was = flatten_options(config_to_json(config)), flatten_options(saved)
     for name in sorted(explicit):
@@ -174,11 +185,23 @@ def _print_json(summary: dict[str, Any]) -> None:
     print(json.dumps(finite_or_none(summary), indent=2, allow_nan=False))
 
 
+def _resume_in_argv(argv: Sequence[str]) -> bool:
+    """Whether ``argv`` asks to resume (the last of ``--resume`` and ``--no-resume`` decides)."""
+    flags = [arg for arg in argv if arg in ("--resume", "--no-resume")]
+    return bool(flags) and flags[-1] == "--resume"
+
+
+def _saved_str(saved: dict[str, Any], name: str, default: str) -> str:
+    value = saved.get(name)
+    return value if isinstance(value, str) else default
+
+
 def train_config_from_argv(argv: Sequence[str]) -> tuple[TrainConfig, str | None]:
     """Parse ``rankgame train`` options: the config, and a note on what ``--recipe`` changed (None for paper).
 
     The SAC preset and the recipe of ``--env`` and ``--method`` set the defaults; options given
-    explicitly override them. With ``--resume`` the run's saved settings are the config.
+    explicitly override them. With ``--resume`` the run's saved settings are the config, and the recipe
+    is that of the run's task and method unless ``--env`` or ``--method`` is given.
     """
     from rankgame.config import TrainConfig
     from rankgame.game.recipes import RECIPES, recipe_settings, setting_value, with_settings
@@ -187,12 +210,15 @@ def train_config_from_argv(argv: Sequence[str]) -> tuple[TrainConfig, str | None
     argv = _modern_spelling(argv)
 
     recipe = _value_from_argv(argv, "--recipe", "paper")
-    env = _value_from_argv(argv, "--env", TrainConfig.env)
-    method = _value_from_argv(argv, "--method", TrainConfig.method)
-    try:
-        settings = recipe_settings(recipe, env, method)
-    except ValueError as exc:
-        raise RankGameError(str(exc)) from None
+    if recipe not in RECIPES:
+        raise UsageError(f"unknown recipe {recipe!r}; choose from {', '.join(RECIPES)}")
+    # A resumed run's recipe is that of its own task and method, unless they are given.
+    saved: dict[str, Any] = {}
+    if _resume_in_argv(argv):
+        saved = _saved_settings(Path(_value_from_argv(argv, "--out", str(TrainConfig.out)))) or {}
+    env = _value_from_argv(argv, "--env", _saved_str(saved, "env", TrainConfig.env))
+    method = _value_from_argv(argv, "--method", _saved_str(saved, "method", TrainConfig.method))
+    settings = recipe_settings(recipe, env, method)
 
     def make_config(sac: SACConfig) -> TrainConfig:
         return with_settings(TrainConfig(sac=sac), settings)
@@ -439,6 +465,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RunInterrupted as exc:
         print(f"{PROG}: {exc}", file=sys.stderr)
         return 128 + exc.signal_number
+    except UsageError as exc:
+        print(f"{PROG} {name}: error: {exc} (see --help)", file=sys.stderr)
+        return 2
     except RankGameError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 1

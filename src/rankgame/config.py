@@ -17,12 +17,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, TypeVar, Union, get_args, get_origin
 
+from rankgame.baselines.cloning import CloningConfig
 from rankgame.errors import RankGameError, invalid_choices
 from rankgame.game.leaders import Budget, BudgetRows, LeaderConfig
-from rankgame.game.methods import METHODS
+from rankgame.game.methods import ALL_METHODS, CLONING_METHODS, METHODS
 from rankgame.game.rankings import Mixup, RankingsConfig
-from rankgame.policy.sac import SACConfig
+from rankgame.game.recipes import setting_value
+from rankgame.policy.ppo import PPOConfig
+from rankgame.policy.sac import SAC_PRESETS, SACConfig
 from rankgame.reward.inputs import RewardInput
+from rankgame.reward.losses import LOSSES
 from rankgame.reward.player import RewardConfig
 
 
@@ -39,7 +43,8 @@ class SwitchConfig:
     expert: Path | None = None
     """Expert data to imitate after --switch.at (e.g. an expert of rankgame/HopperBackward-v5: changed
     intent), recorded on --switch.env if given, else on ENV; scores are then normalized by its returns.
-    Default: the shipped data of --switch.env if there is any, else the same expert throughout."""
+    Default: the shipped data of --switch.env if there is any, else the same expert throughout. The pref
+    methods take neither (their offline rankings lie below the first expert)."""
 
 
 @dataclass(frozen=True)
@@ -80,10 +85,17 @@ class TrainConfig:
         "rank-ral-pref",
         "imit-pal",
         "imit-ral",
+        "gail",
+        "gaifo",
+        "dac",
+        "dacfo",
+        "trex",
+        "bc",
+        "bco",
     ] = "rank-pal-auto"
-    """Rankings x loss x leader (see rankgame.game.methods)."""
+    """Rankings x loss x leader x policy player (see rankgame.game.methods and docs/methods.md)."""
     steps: int = 300_000
-    """Environment steps of training."""
+    """Environment steps of training (for bc, which never acts: gradient steps)."""
     seed: int = 0
     """Seed of everything random in the run."""
     out: Path = Path("runs/train")
@@ -95,10 +107,12 @@ class TrainConfig:
     preferences: Path | None = None
     """Offline trajectories ranked below the expert, for the pref methods (default: the shipped data
     for ENV; make a file with `rankgame preferences`)."""
-    setting: Literal["lfo", "lfd"] = "lfo"
-    """Learn from observations only (lfo) or from observations and actions (lfd)."""
+    setting: Literal["lfo", "lfd"] | None = None
+    """Learn from observations only (lfo) or from observations and actions (lfd); default: lfd for
+    gail, dac and bc, lfo for every other method."""
     reward_input: Literal["default", "s", "ss", "sa"] = "default"
-    """Reward inputs: s, (s, s') or (s, a); default: s for lfo, sa for lfd."""
+    """Reward inputs: s, (s, s') or (s, a); default: sa for lfd, and for lfo (s, s') with gaifo and
+    dacfo, s with the others."""
     reward_obs: str = "all"
     """Observation entries the reward reads: all, or indices and half-open ranges such as 0:27."""
     policy_updates: int | None = None
@@ -119,22 +133,32 @@ class TrainConfig:
     reward: RewardConfig = field(default_factory=RewardConfig)
     leader: LeaderConfig = field(default_factory=LeaderConfig)
     sac: SACConfig = field(default_factory=SACConfig)
+    ppo: PPOConfig = field(default_factory=PPOConfig)
+    cloning: CloningConfig = field(default_factory=CloningConfig)
     switch: SwitchConfig = field(default_factory=SwitchConfig)
     ablation: AblationConfig = field(default_factory=AblationConfig)
+
+    @property
+    def resolved_setting(self) -> Literal["lfo", "lfd"]:
+        """``setting``, or the method's own when it is None."""
+        if self.method in CLONING_METHODS:
+            return self.setting or CLONING_METHODS[self.method]
+        return self.setting or METHODS[self.method].settings[0]
 
     @property
     def resolved_reward_input(self) -> RewardInput:
         if self.reward_input != "default":
             return self.reward_input
-        return "s" if self.setting == "lfo" else "sa"
+        if self.resolved_setting == "lfd":
+            return "sa"
+        return METHODS[self.method].lfo_input if self.method in METHODS else "s"
 
     def validate(self) -> None:
         """Raise :class:`RankGameError` with a one-line reason for settings that make no sense."""
-        if self.method not in METHODS:
-            raise RankGameError(f"unknown method {self.method!r}; choose from {', '.join(METHODS)}")
+        if self.method not in ALL_METHODS:
+            raise RankGameError(f"unknown method {self.method!r}; choose from {', '.join(ALL_METHODS)}")
         if invalid := invalid_choices(self):
             raise RankGameError(f"bad setting: {invalid[0]}")
-        method = METHODS[self.method]
         positive = {
             "--steps": self.steps,
             "--eval-every": self.eval_every,
@@ -149,33 +173,149 @@ class TrainConfig:
             raise RankGameError(f"--seed must be >= 0 (got {self.seed})")
         if self.policy_updates is not None and self.policy_updates <= 0:
             raise RankGameError("--policy-updates must be positive")
+        if self.method in CLONING_METHODS:
+            self._validate_cloning()
+        else:
+            self._validate_game()
+
+    def _validate_cloning(self) -> None:
+        if self.resolved_setting != CLONING_METHODS[self.method]:
+            raise RankGameError(
+                f"{self.method} learns only {_LEARNS[CLONING_METHODS[self.method]]}, not with --setting {self.setting}"
+            )
+        if unused := unused_settings(self):
+            raise RankGameError(f"{unused[0]} is not used by {self.method}")
+        try:
+            self.cloning.validate()
+        except ValueError as exc:
+            raise RankGameError(f"bad setting: {exc}") from None
+
+    def _validate_game(self) -> None:
+        method = METHODS[self.method]
         if self.ablation.mixup != "trajectory" and method.rankings != "auto":
             raise RankGameError(f"--ablation.mixup is used only by the auto methods, not {self.method}")
-        if self.preferences is not None and method.rankings != "pref":
-            raise RankGameError(f"--preferences is used only by the pref methods, not {self.method}")
-        if self.rankings.pref_noise > 0.0 and method.rankings != "pref":
-            raise RankGameError(f"--rankings.pref-noise is used only by the pref methods, not {self.method}")
+        if self.preferences is not None and not method.uses_preferences:
+            raise RankGameError(f"--preferences is used only by the pref methods and trex, not {self.method}")
+        if self.rankings.pref_noise > 0.0 and not method.uses_preferences:
+            raise RankGameError(f"--rankings.pref-noise is used only by the pref methods and trex, not {self.method}")
         switch = self.switch
         if (switch.at is not None) != (switch.env is not None or switch.expert is not None):
             raise RankGameError("--switch.at needs --switch.env or --switch.expert, and they need --switch.at")
         if switch.at is not None and not 0 < switch.at < self.steps:
             raise RankGameError(f"--switch.at must lie between 0 and --steps {self.steps} (got {switch.at})")
-        if switch.expert is not None and method.rankings == "pref":
+        if switch.expert is not None and method.uses_preferences:
             raise RankGameError("--switch.expert cannot be combined with the pref methods' offline rankings")
-        if self.setting == "lfo" and self.resolved_reward_input == "sa":
+        if switch.expert is None and switch.env is not None and method.uses_preferences:
+            from rankgame.data.experts import shipped_envs
+
+            if switch.env in shipped_envs():  # plan_switch would imitate its shipped expert after the switch
+                raise RankGameError(
+                    f"--switch.env {switch.env} brings its shipped expert, which the pref methods' offline rankings "
+                    "(below the first expert) cannot follow: use a --switch.env without shipped expert data "
+                    f"(changed dynamics, e.g. rankgame/HopperHeavy-v5) or a --method other than {self.method}"
+                )
+        if self.resolved_setting not in method.settings:
+            raise RankGameError(
+                f"{self.method} learns only {_LEARNS[method.settings[0]]}, not with --setting {self.setting}"
+            )
+        if self.resolved_setting == "lfo" and self.resolved_reward_input == "sa":
             raise RankGameError("--reward-input sa needs expert actions: use --setting lfd")
+        if unused := unused_settings(self):
+            raise RankGameError(f"{unused[0]} is not used by {self.method}")
         try:
             self.rankings.validate(method.rankings)
             self.reward.validate()
             self.leader.validate()
             self.sac.validate()
+            self.ppo.validate()
         except ValueError as exc:
             raise RankGameError(f"bad setting: {exc}") from None
-        if self.rankings.k > self.reward.r_max:
+        if LOSSES[method.loss].regresses_targets and self.rankings.k > self.reward.r_max:
             raise RankGameError(
                 f"targets [0, {self.rankings.k}] exceed the reward bound [-{self.reward.r_max}, {self.reward.r_max}] "
                 "(--reward.r-max)"
             )
+
+
+_LEARNS = {"lfd": "from demonstrations (lfd)", "lfo": "from observations (lfo)"}
+
+#: The options each piece reads, by dotted name; an option that no piece of a method reads must keep its
+#: default for that method (``unused_settings``).
+_RANKINGS_OPTIONS: dict[str, tuple[str, ...]] = {
+    "vanilla": ("rankings.k",),
+    "auto": ("rankings.k", "rankings.schedule", "rankings.beta", "rankings.interpolations"),
+    "pref": (
+        "rankings.k",
+        "rankings.schedule",
+        "rankings.beta",
+        "rankings.pref_weight",
+        "rankings.pref_noise",
+        "rankings.snippet_length",
+    ),
+    "offline": ("rankings.pref_noise", "rankings.snippet_length"),
+}
+_LEADER_OPTIONS: dict[str, tuple[str, ...]] = {
+    "pal": ("leader.holdout_fraction", "leader.patience", "leader.max_epochs"),
+    "ral": ("leader.holdout_fraction", "leader.ral_passes"),
+    "gda": ("leader.holdout_fraction", "leader.gda_steps"),
+    "gda-replay": ("leader.holdout_fraction", "leader.gda_steps"),
+    "reward-first": ("leader.opening_steps",),
+}
+
+
+#: What the cloning methods read besides the run's own options.
+_CLONING_OPTIONS = (
+    "env",
+    "method",
+    "steps",
+    "seed",
+    "out",
+    "expert",
+    "expert_trajectories",
+    "setting",
+    "eval_every",
+    "eval_episodes",
+    "checkpoint_every",
+    "resume",
+    "tensorboard",
+    "progress",
+    "cloning",
+)
+
+
+def unused_settings(config: TrainConfig) -> list[str]:
+    """The ``--`` names of options set away from their defaults that no piece of ``config.method`` reads."""
+    defaults = TrainConfig()
+    if config.method in CLONING_METHODS:
+        names = [
+            f.name
+            for f in dataclasses.fields(TrainConfig)
+            if f.name not in _CLONING_OPTIONS and getattr(config, f.name) != getattr(defaults, f.name)
+        ]
+        if "sac" in names and config.sac in SAC_PRESETS.values():
+            names.remove("sac")
+        return [
+            "--" + name.replace("_", "-") + (".*" if dataclasses.is_dataclass(getattr(config, name)) else "")
+            for name in names
+        ]
+    method = METHODS[config.method]
+    unused = [
+        *(f"rankings.{f.name}" for f in dataclasses.fields(RankingsConfig)),
+        *(f"leader.{f.name}" for f in dataclasses.fields(LeaderConfig)),
+    ]
+    used = set(_RANKINGS_OPTIONS[method.rankings]) | set(_LEADER_OPTIONS[method.leader])
+    if not LOSSES[method.loss].gradient_penalty:
+        unused.append("reward.gradient_penalty")
+    names = [
+        name for name in unused if name not in used and setting_value(config, name) != setting_value(defaults, name)
+    ]
+    if method.policy != "sac" and config.sac not in SAC_PRESETS.values():
+        names.append("sac.*")
+    if method.policy != "ppo" and config.ppo != PPOConfig():
+        names.append("ppo.*")
+    if config.cloning != CloningConfig():
+        names.append("cloning.*")
+    return ["--" + name.replace("_", "-") for name in names]
 
 
 def config_to_json(config: Any) -> dict[str, Any]:

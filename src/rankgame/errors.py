@@ -12,6 +12,11 @@ class RankGameError(Exception):
     """A problem with user input (arguments, data files, environments) explained in one line."""
 
 
+class UsageError(RankGameError):
+    """A command line that is itself wrong (an unknown choice of an option read ahead of parsing, such as
+    ``--preset`` or ``--recipe``): exit status 2, as for argparse's own errors."""
+
+
 class NonFiniteError(RankGameError):
     """Training produced a NaN or infinite value (a loss, a parameter, an action): the run must stop.
 

@@ -14,13 +14,43 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from rankgame.baselines.bco import BCO_LOG_COLUMNS, BCOTrainer
+from rankgame.baselines.cloning import BC_LOG_COLUMNS, BCTrainer
 from rankgame.config import TrainConfig, config_to_json
-from rankgame.envs.make import env_spec, make_env
+from rankgame.data.trajectories import TrajectoryFile
+from rankgame.envs.make import EnvSpec, env_spec, make_env
 from rankgame.game.data import DataSource, resolve_expert, resolve_preferences
-from rankgame.game.loop import LOG_COLUMNS, RankingGame
+from rankgame.game.loop import RankingGame
 from rankgame.game.methods import METHODS
 from rankgame.game.switch import plan_switch
-from rankgame.run import Callback, RunSettings, open_run, run
+from rankgame.run import Callback, RunSettings, Trainer, open_run, run
+
+
+def _expert_data(config: TrainConfig, expert: DataSource) -> tuple[TrajectoryFile, EnvSpec]:
+    env = make_env(config.env)
+    spec = env_spec(env)
+    env.close()
+    source = expert if expert is not None else config.expert
+    return resolve_expert(source, config.env, spec, config.expert_trajectories, "expert data"), spec
+
+
+def build_trainer(
+    config: TrainConfig,
+    expert: DataSource = None,
+    preferences: DataSource = None,
+    switch_expert: DataSource = None,
+) -> tuple[Trainer, tuple[str, ...]]:
+    """The trainer of ``config.method`` (the ranking game, or a cloning method's) and its log columns."""
+    if config.method == "bc":
+        data, _ = _expert_data(config, expert)
+        bc = BCTrainer(config.cloning, config.env, data, config.expert_trajectories, config.seed, config.eval_episodes)
+        return bc, BC_LOG_COLUMNS
+    if config.method == "bco":
+        data, _ = _expert_data(config, expert)
+        args = (config.cloning, config.env, data, config.expert_trajectories, config.seed, config.eval_episodes)
+        return BCOTrainer(*args, steps=config.steps), BCO_LOG_COLUMNS
+    game = build_game(config, expert, preferences, switch_expert)
+    return game, game.log_columns
 
 
 def build_game(
@@ -30,15 +60,10 @@ def build_game(
     switch_expert: DataSource = None,
 ) -> RankingGame:
     """The :class:`~rankgame.game.loop.RankingGame` of ``config`` with its data resolved (see :func:`train`
-    for the data arguments); ``config`` must be valid."""
-    env = make_env(config.env)
-    spec = env_spec(env)
-    env.close()
-    expert_data = resolve_expert(
-        expert if expert is not None else config.expert, config.env, spec, config.expert_trajectories, "expert data"
-    )
+    for the data arguments); ``config`` must be valid and name a game method."""
+    expert_data, spec = _expert_data(config, expert)
     prefs = None
-    if METHODS[config.method].rankings == "pref":
+    if METHODS[config.method].uses_preferences:
         prefs = resolve_preferences(preferences if preferences is not None else config.preferences, config.env, spec)
     return RankingGame(config, expert_data, prefs, plan_switch(config, spec, switch_expert))
 
@@ -86,12 +111,13 @@ def train(
         f"{config.method} {config.env}",
     )
     resumed = open_run(settings, as_json)
-    game = build_game(config, expert, preferences, switch_expert)  # bad tasks or data fail before OUT exists
-    game.command = command or shlex.join(sys.argv)
-    row = run(game, settings, resumed, as_json, LOG_COLUMNS, game.command, callback)
+    # Bad tasks or data fail before OUT exists.
+    trainer, columns = build_trainer(config, expert, preferences, switch_expert)
+    trainer.command = command or shlex.join(sys.argv)
+    row = run(trainer, settings, resumed, as_json, columns, trainer.command, callback)
     keys = ("eval_return", "normalized_score", "eval_success")
     return {
-        "env": game.env_id,
+        "env": trainer.env_id,
         "method": config.method,
         "steps": config.steps,
         "env_steps": row["env_steps"],

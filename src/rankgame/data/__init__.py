@@ -16,11 +16,11 @@ def shipped_ids(folder: Path) -> list[str]:
     return sorted(path.stem.replace("__", "/") for path in folder.glob("*.npz"))
 
 
-def shipped_path(folder: Path, env_id: str, what: str, instead: str) -> Path:
-    """``folder/<env_id>.npz``, or a :class:`RankGameError` naming the ids that have ``what`` and what to do
-    ``instead``."""
+def shipped_path(folder: Path, env_id: str, what: str, instead: str, available: list[str] | None = None) -> Path:
+    """``folder/<env_id>.npz``, or a :class:`RankGameError` naming the ids that have ``what`` (``available``,
+    every id whose data resolves; default: those with a file in ``folder``) and what to do ``instead``."""
     path = folder / f"{env_id.replace('/', '__')}.npz"
     if not path.is_file():
-        available = ", ".join(shipped_ids(folder)) or "none"
-        raise RankGameError(f"no shipped {what} for {env_id!r} (available: {available}); {instead}")
+        names = ", ".join(shipped_ids(folder) if available is None else available) or "none"
+        raise RankGameError(f"no shipped {what} for {env_id!r} (available: {names}); {instead}")
     return path

@@ -36,8 +36,7 @@ from rankgame.game.leaders import make_leader
 from rankgame.game.methods import METHODS
 from rankgame.game.rankings import build_rankings
 from rankgame.game.switch import TaskSwitch
-from rankgame.policy.io import save_policy
-from rankgame.policy.learner import SACLearner
+from rankgame.policy.players import iteration_steps, make_policy_player
 from rankgame.reward.inputs import InputLayout, parse_obs_columns
 from rankgame.reward.losses import LOSSES
 from rankgame.reward.player import RewardPlayer
@@ -93,7 +92,7 @@ class RankingGame:
         """The command line recorded in saved policies."""
         spec = self.spec = env_spec(self.env)
         self.horizon = spec.max_episode_steps or max(len(t) for t in expert.trajectories)
-        self.n_pol = cfg.policy_updates or self.horizon
+        self.n_pol = cfg.policy_updates or iteration_steps(self.method.policy, cfg, self.horizon)
         if cfg.steps < self.n_pol:
             raise RankGameError(
                 f"--steps {cfg.steps} is shorter than one game iteration ({self.n_pol} steps, the horizon or "
@@ -121,14 +120,14 @@ class RankingGame:
             )
         except ValueError as exc:
             raise RankGameError(f"bad rankings setting: {exc}") from None
-        self.leader = make_leader(self.method.leader, cfg.leader, cfg.ablation.leader_budget, cfg.ablation.budget_rows)
+        self.leader = make_leader(
+            self.method.leader, cfg.leader, cfg.ablation.leader_budget, cfg.ablation.budget_rows, self.n_pol
+        )
         self.player = RewardPlayer(
             self.layout, loss, cfg.reward, self.rankings, columns, spectral_norm=cfg.ablation.spectral_norm
         )
-        # SAC relabels its batches with the reward player's current reward.
-        self.learner = SACLearner(
-            self.env, cfg.sac, cfg.seed, reward_fn=self.player.reward_fn, store_env_reward=False, absorbing=True
-        )
+        # The policy player relabels its batches with the reward player's current reward.
+        self.learner = make_policy_player(self.method.policy, self.env, cfg, self.player.reward_fn)
         self.reward_state = self.player.init(jax.random.fold_in(jax.random.key(cfg.seed), 1))
         self.rng = np.random.default_rng([cfg.seed, 1])
         self._set_score_scale(expert)
@@ -141,11 +140,16 @@ class RankingGame:
         self._episode_acts: list[np.ndarray] = []
         self.finished: list[np.ndarray] = []
         self.reward_metrics: dict[str, float] = {}
-        self.sac_metrics: dict[str, float] = {}
+        self.policy_metrics: dict[str, float] = {}
 
     @property
     def env_steps(self) -> int:
         return self.learner.env_steps
+
+    @property
+    def log_columns(self) -> tuple[str, ...]:
+        """The columns of ``metrics.csv``: :data:`LOG_COLUMNS` and those of the method's loss and policy player."""
+        return (*LOG_COLUMNS, *self.player.loss.log_columns, *self.learner.log_columns)
 
     def _set_score_scale(self, expert: TrajectoryFile) -> None:
         """The expert and random returns that normalize scores, from the expert file's records."""
@@ -174,15 +178,34 @@ class RankingGame:
 
     # --- Algorithm 1 --------------------------------------------------------------------------
     def step(self, step: int) -> None:
-        """Environment step ``step``, the SAC updates due after it, and the reward's turn at an iteration's end."""
+        """Environment step ``step``, the policy updates due after it, and the reward's turn at an iteration's end.
+
+        An off-policy player (SAC) updates before the reward's turn, as in Alg. 1. An on-policy player
+        (PPO) updates once per iteration on the rollout just collected, so the reward moves first and
+        the update reads the rollout relabelled by the reward that has just seen it (GAIL's order).
+        """
         if self.switch is not None and self.switch.due(step):
             self.apply_switch()
-        self.env_step()
-        if step % self.n_pol == 0:
+        if step == 1 and self.leader.moves_first:
+            self.reward_state, self.reward_metrics = self.leader.opening(self.player, self.reward_state, self.rng)
+            self._check_reward_loss()
+        if step % self.n_pol != 0:
+            self.env_step()
+        elif self.learner.on_policy:
+            self.act()
+            self.reward_turn()
+            self.update_policy()
+        else:
+            self.env_step()
             self.reward_turn()
 
     def env_step(self) -> None:
-        """One environment step of the policy player and the SAC updates due after it."""
+        """One environment step of the policy player and the policy updates due after it."""
+        self.act()
+        self.update_policy()
+
+    def act(self) -> None:
+        """One environment step of the policy player; a finished episode becomes agent data."""
         result = self.learner.env_step()
         if not self._episode_obs:
             self._episode_obs.append(result.obs)
@@ -193,7 +216,10 @@ class RankingGame:
                 obs, acts = np.asarray(self._episode_obs), np.asarray(self._episode_acts, np.float32)
                 self.finished.append(self.layout.episode(obs, acts, result.terminated, self.horizon))
             self._episode_obs, self._episode_acts = [], []
-        self.sac_metrics = self.learner.maybe_update(self.reward_state.params) or self.sac_metrics
+
+    def update_policy(self) -> None:
+        """The policy player's updates that are due, on batches relabelled by the current reward."""
+        self.policy_metrics = self.learner.maybe_update(self.reward_state.params) or self.policy_metrics
 
     def reward_turn(self) -> None:
         """The reward player's move at the end of an iteration (nothing if no episode finished)."""
@@ -202,12 +228,16 @@ class RankingGame:
         new = np.concatenate(self.finished)
         self.leader.receive(self.rankings, self.finished, self.rng)
         self.finished = []
-        self.reward_state, self.reward_metrics = self.leader.fit(self.player, self.reward_state, self.rng)
-        if not np.isfinite(self.reward_metrics["reward/train_loss"]):
-            raise NonFiniteError("the reward loss")
+        if (turn := self.leader.fit(self.player, self.reward_state, self.rng)) is not None:
+            self.reward_state, self.reward_metrics = turn
+            self._check_reward_loss()
         expert = self.rankings.data.expert
         self.reward_metrics["reward/agent"] = self._mean_real_reward(new)
         self.reward_metrics["reward/expert"] = self._mean_real_reward(expert.reshape(-1, expert.shape[-1]))
+
+    def _check_reward_loss(self) -> None:
+        if not np.isfinite(self.reward_metrics["reward/train_loss"]):
+            raise NonFiniteError("the reward loss")
 
     def _mean_real_reward(self, inputs: np.ndarray) -> float:
         """Mean learned reward ``()`` over the inputs ``(N, d)`` that are real states, not absorbing ones."""
@@ -246,7 +276,7 @@ class RankingGame:
         return result if success is None else {**result, "eval_success": success}
 
     def training_metrics(self) -> dict[str, float]:
-        return {**self.reward_metrics, **self.sac_metrics}
+        return {**self.reward_metrics, **self.policy_metrics}
 
     def postfix(self, row: dict[str, float]) -> dict[str, str]:
         """Progress-bar fields: normalized score, return and, where known, success rate."""
@@ -259,15 +289,9 @@ class RankingGame:
     def save_policies(self, out: Path, step: int, row: dict[str, float]) -> None:
         """Write the current actor for ``rankgame evaluate``, marked as one that reads the absorbing flag
         the game appends to observations."""
-        spec = self.learner.spec
-        params = jax.device_get(self.learner.state.actor_params)
-        save_policy(
+        self.learner.save_policy(
             out / POLICY_NAME,
-            self.learner.sac,
-            params,
             self.env_id,
-            spec.act_low,
-            spec.act_high,
             absorbing_flag=True,
             command=self.command,
             env_steps=step,

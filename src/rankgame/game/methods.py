@@ -1,23 +1,38 @@
-"""A method is a combination of three named pieces (Sec. 4): ranking source x ranking loss x leader.
+"""A method is a combination of named pieces (Sec. 3-4): ranking source x ranking loss x leader, played
+by a policy player in the settings the method allows.
 
-=================  =========  ==========  ======
-method             rankings   loss        leader
-=================  =========  ==========  ======
-rank-pal-auto      auto       regression  pal
-rank-ral-auto      auto       regression  ral
-rank-pal-vanilla   vanilla    regression  pal
-rank-ral-vanilla   vanilla    regression  ral
-rank-pal-pref      pref       regression  pal
-rank-ral-pref      pref       regression  ral
-imit-pal           vanilla    supremum    pal
-imit-ral           vanilla    supremum    ral
-=================  =========  ==========  ======
+=================  =========  =============  ============  ======  =========
+method             rankings   loss           leader        policy  settings
+=================  =========  =============  ============  ======  =========
+rank-pal-auto      auto       regression     pal           sac     lfo, lfd
+rank-ral-auto      auto       regression     ral           sac     lfo, lfd
+rank-pal-vanilla   vanilla    regression     pal           sac     lfo, lfd
+rank-ral-vanilla   vanilla    regression     ral           sac     lfo, lfd
+rank-pal-pref      pref       regression     pal           sac     lfo, lfd
+rank-ral-pref      pref       regression     ral           sac     lfo, lfd
+imit-pal           vanilla    supremum       pal           sac     lfo, lfd
+imit-ral           vanilla    supremum       ral           sac     lfo, lfd
+gail               vanilla    logistic       gda           ppo     lfd
+gaifo              vanilla    logistic       gda           ppo     lfo
+dac                vanilla    logistic-gp    gda-replay    sac     lfd
+dacfo              vanilla    logistic-gp    gda-replay    sac     lfo
+trex               offline    bradley-terry  reward-first  sac     lfo, lfd
+=================  =========  =============  ============  ======  =========
+
+GAIfO and DACfO read state transitions ``(s, s')`` from observations, as in their papers; every
+other method reads ``s``, and ``(s, a)`` from demonstrations.
 
 Each column names an entry of one module: rankings in :mod:`rankgame.game.rankings` (``vanilla`` ranks
 the agent below the expert; ``auto`` adds the time-aligned mixtures between them, App. B.1; ``pref``
-adds a fixed chain of offline trajectories ranked below the expert, Eq. 6), losses in
-:data:`rankgame.reward.losses.LOSSES`, leaders in :mod:`rankgame.game.leaders`. Adding a method means
-adding a row to :data:`METHODS`, not another training loop.
+adds a fixed chain of offline trajectories ranked below the expert, Eq. 6; ``offline`` is that chain
+alone, in pairs of snippets), losses in :data:`rankgame.reward.losses.LOSSES`, leaders in
+:mod:`rankgame.game.leaders`, policy players in :mod:`rankgame.policy` (SAC, PPO). GAIL and GAIfO
+(Ho & Ermon 2016; Torabi et al. 2018) and DAC and DACfO (Kostrikov et al. 2019) are the same
+discriminator game in LfD and LfO; the IMIT methods are their Stackelberg counterparts (the paper,
+Sec. 3). Adding a method means adding a row to :data:`METHODS`, not another training loop.
+
+Behavior cloning plays no game: ``bc`` (LfD) and ``bco`` (LfO) are trainers of their own
+(:mod:`rankgame.baselines`), listed in :data:`CLONING_METHODS` with the setting they learn in.
 """
 
 from __future__ import annotations
@@ -27,17 +42,31 @@ from typing import Literal
 
 from rankgame.game.leaders import LeaderName
 from rankgame.game.rankings import RankingSource
+from rankgame.reward.inputs import RewardInput
 
-LossName = Literal["regression", "supremum"]
+LossName = Literal["regression", "supremum", "logistic", "logistic-gp", "bradley-terry"]
+PolicyName = Literal["sac", "ppo"]
+Setting = Literal["lfo", "lfd"]
 
 
 @dataclass(frozen=True)
 class Method:
-    """Where rankings come from, which loss fits them, and which player leads."""
+    """Where rankings come from, which loss fits them, which player leads, who plays the policy, and
+    whether the expert's actions may (``lfd``) or need not (``lfo``) be used (the first is the default);
+    ``lfo_input`` is the reward's input from observations: ``s`` (the paper's ``r(s)``) or ``ss``, the
+    state transitions ``(s, s')`` of GAIfO and DACfO."""
 
     rankings: RankingSource
     loss: LossName
     leader: LeaderName
+    policy: PolicyName = "sac"
+    settings: tuple[Setting, ...] = ("lfo", "lfd")
+    lfo_input: RewardInput = "s"
+
+    @property
+    def uses_preferences(self) -> bool:
+        """Whether the rankings include a preference file's offline trajectories (pref, offline)."""
+        return self.rankings in ("pref", "offline")
 
 
 METHODS: dict[str, Method] = {
@@ -49,4 +78,16 @@ METHODS: dict[str, Method] = {
     "rank-ral-pref": Method("pref", "regression", "ral"),
     "imit-pal": Method("vanilla", "supremum", "pal"),
     "imit-ral": Method("vanilla", "supremum", "ral"),
+    "gail": Method("vanilla", "logistic", "gda", "ppo", ("lfd",)),
+    "gaifo": Method("vanilla", "logistic", "gda", "ppo", ("lfo",), lfo_input="ss"),
+    "dac": Method("vanilla", "logistic-gp", "gda-replay", "sac", ("lfd",)),
+    "dacfo": Method("vanilla", "logistic-gp", "gda-replay", "sac", ("lfo",), lfo_input="ss"),
+    "trex": Method("offline", "bradley-terry", "reward-first"),
 }
+
+
+#: The methods that play no game, with the one setting each learns in (:mod:`rankgame.baselines`).
+CLONING_METHODS: dict[str, Setting] = {"bc": "lfd", "bco": "lfo"}
+
+#: Every name ``--method`` accepts.
+ALL_METHODS: tuple[str, ...] = (*METHODS, *CLONING_METHODS)

@@ -10,6 +10,12 @@
   ``(1 - w) L(agent vs expert) + w (L_states(offline) + L_snippets(offline)) / 2`` with ``w`` the
   offline weight (Table 4: 0.3). Offline trajectory ``i`` of ``p`` (worst first) is regressed to the
   schedule's target at ``i / p`` of the way from the agent's target to the expert's.
+* ``offline``: only the offline chain of a preference file, grounded by the expert on top, compared
+  in pairs of snippets (T-REX, Brown et al. 2019); the agent's own data is never ranked, so the
+  reward is learned before the policy moves (the ``reward-first`` leader). Needs a pairwise loss.
+
+Every source can also give the points of a gradient penalty (losses that have one): random
+interpolations between agent and expert inputs (:meth:`RankingData.sample_interpolates`).
 
 :func:`build_rankings` turns expert (and preference) reward inputs into a :class:`Rankings`, which
 owns the ranking data the leader adds agent trajectories to, samples training batches and defines
@@ -31,6 +37,7 @@ from rankgame.reward.inputs import InputLayout
 from rankgame.reward.losses import (
     Metrics,
     RankingLoss,
+    gradient_penalty,
     regression_ranking_loss,
     snippet_regression_loss,
     weighted_sum,
@@ -39,7 +46,7 @@ from rankgame.reward.offline_rankings import OfflineRankings
 from rankgame.reward.ranking_data import RankingData
 from rankgame.reward.targets import Schedule, lambda_grid, target_schedule
 
-RankingSource = Literal["vanilla", "auto", "pref"]
+RankingSource = Literal["vanilla", "auto", "pref", "offline"]
 Mixup = Literal["trajectory", "state"]
 
 #: Regression target of agent inputs, the bottom of every chain (the paper's 0).
@@ -78,7 +85,10 @@ class RankingsConfig:
                 (0.0 <= self.pref_weight <= 1.0, "rankings pref_weight must lie in [0, 1]"),
                 (0.0 <= self.pref_noise <= 1.0, f"rankings pref_noise must lie in [0, 1] (got {self.pref_noise})"),
                 (self.snippet_length > 0, "rankings snippet_length must be positive"),
-                (self.pref_noise == 0.0 or source == "pref", "rankings pref_noise is used only by pref rankings"),
+                (
+                    self.pref_noise == 0.0 or source in ("pref", "offline"),
+                    "rankings pref_noise is used only by the pref and offline rankings",
+                ),
             ]
         )
 
@@ -102,33 +112,70 @@ class Rankings:
             leader adds agent data to it.
         offline: the pref rankings' fixed chain of offline trajectories, else None.
         offline_weight: ``w`` of Eq. 6 (ignored without ``offline``).
+        penalty_points: also sample the points of a gradient penalty (a loss that has one).
     """
 
     data: RankingData
     offline: OfflineRankings | None = None
     offline_weight: float = 0.0
+    penalty_points: bool = False
 
     def sample(self, rng: np.random.Generator, n_batches: int, batch_size: int) -> tuple[Any, ...]:
         """``n_batches`` training batches: inputs ``(n, B, d)``, targets ``(n, B)``, is-expert flags
-        ``(n, B)`` and, with offline rankings, their states, targets, snippets and snippet targets
-        (:meth:`OfflineRankings.sample`), else None."""
+        ``(n, B)``; with offline rankings, their states, targets, snippets and snippet targets
+        (:meth:`OfflineRankings.sample`), else None; with ``penalty_points``, interpolated inputs
+        ``(n, B, d)``, else None."""
         inputs, targets, is_expert = self.data.sample(rng, n_batches, batch_size)
         offline = None if self.offline is None else self.offline.sample(rng, n_batches, batch_size)
-        return inputs, targets, is_expert, offline
+        points = self.data.sample_interpolates(rng, n_batches, batch_size) if self.penalty_points else None
+        return inputs, targets, is_expert, offline, points
 
-    def objective(self, raw_fn: RawRewardFn, loss: RankingLoss, r_max: float) -> Objective:
-        """The loss of one batch: ``loss`` on the agent-vs-expert chain and, with offline rankings, Eq. 6."""
+    def objective(self, raw_fn: RawRewardFn, loss: RankingLoss, r_max: float, penalty: float = 0.0) -> Objective:
+        """The loss of one batch: ``loss`` on the agent-vs-expert chain, with offline rankings Eq. 6, and
+        with ``penalty_points`` plus ``penalty`` times the gradient penalty."""
         weight = self.offline_weight
 
         def objective(params: Any, batch: tuple[Any, ...]) -> tuple[jax.Array, Metrics]:
-            inputs, targets, is_expert, offline = batch
-            online = loss(raw_fn(params, inputs), targets, is_expert, jnp.ones_like(targets), r_max)
-            if offline is None:
-                return online
-            states, state_targets, snippets, snippet_targets = offline
-            state_loss, _ = regression_ranking_loss(raw_fn(params, states), state_targets)
-            snippet_loss, _ = snippet_regression_loss(raw_fn(params, snippets), snippet_targets)
-            return weighted_sum([(1.0 - weight, online), (weight, (0.5 * (state_loss + snippet_loss), {}))])
+            inputs, targets, is_expert, offline, points = batch
+            result = loss(raw_fn(params, inputs), targets, is_expert, jnp.ones_like(targets), r_max)
+            if offline is not None:
+                states, state_targets, snippets, snippet_targets = offline
+                state_loss, _ = regression_ranking_loss(raw_fn(params, states), state_targets)
+                snippet_loss, _ = snippet_regression_loss(raw_fn(params, snippets), snippet_targets)
+                result = weighted_sum([(1.0 - weight, result), (weight, (0.5 * (state_loss + snippet_loss), {}))])
+            if points is not None:
+                value = gradient_penalty(lambda x: raw_fn(params, x), points)
+                result = (result[0] + penalty * value, {**result[1], "gradient_penalty": value})
+            return result
+
+        return objective
+
+
+@dataclass
+class PairwiseRankings:
+    """The ``offline`` rankings: pairs of snippets of a fixed ranked chain, for a pairwise loss (T-REX).
+
+    Attributes:
+        data: agent-vs-expert data that the reward never fits (it keeps the expert inputs the game
+            reports rewards of); no leader that adds agent data may be paired with these rankings.
+        offline: the chain of offline trajectories and the expert.
+        snippet_length: ``l``; each batch of ``B`` inputs holds ``max(1, B // (2 l))`` pairs.
+    """
+
+    data: RankingData
+    offline: OfflineRankings
+    snippet_length: int
+
+    def sample(self, rng: np.random.Generator, n_batches: int, batch_size: int) -> tuple[Any, ...]:
+        """Better and worse snippets ``(n, S, l, d)`` each (:meth:`OfflineRankings.sample_pairs`)."""
+        return self.offline.sample_pairs(rng, n_batches, max(1, batch_size // (2 * self.snippet_length)))
+
+    def objective(self, raw_fn: RawRewardFn, loss: RankingLoss, r_max: float, penalty: float = 0.0) -> Objective:
+        """``loss`` on the summed raw rewards ``(S,)`` of the better and the worse snippets."""
+
+        def objective(params: Any, batch: tuple[Any, ...]) -> tuple[jax.Array, Metrics]:
+            better, worse = batch
+            return loss.fn(jnp.sum(raw_fn(params, better), -1), jnp.sum(raw_fn(params, worse), -1))  # type: ignore[call-arg]
 
         return objective
 
@@ -143,7 +190,7 @@ def build_rankings(
     preferences: np.ndarray | None = None,
     mixup: Mixup = "trajectory",
     noise_seed: int | Sequence[int] = 0,
-) -> Rankings:
+) -> Rankings | PairwiseRankings:
     """The rankings of ``source``.
 
     Args:
@@ -152,9 +199,10 @@ def build_rankings(
         expert: ``(M, H, d)`` expert reward inputs.
         layout: the reward inputs' layout (to count real agent states).
         holdout_fraction: share of agent rows the ranking data holds out of training.
-        loss: the ranking loss; pref rankings need one that regresses targets.
+        loss: the ranking loss; pref rankings need one that regresses targets, offline rankings a
+            pairwise one, and only they use one.
         preferences: ``(p, H, d)`` reward inputs of the preference file's trajectories, worst first
-            (pref only).
+            (pref and offline only).
         mixup: how the auto mixtures pair agent and expert states: ``trajectory`` (time-aligned, the
             paper's) or ``state`` (an expert state from a random time step, App. D's regularizer ablation).
         noise_seed: seed of the preference noise (pref only).
@@ -164,18 +212,22 @@ def build_rankings(
     config.validate(source)
     if mixup != "trajectory" and source != "auto":
         raise ValueError(f"state mixup is a variant of the auto rankings, not of {source}")
-    if (preferences is not None) != (source == "pref"):
-        raise ValueError("pref rankings need preference data, and only they use it")
+    if (preferences is not None) != (source in ("pref", "offline")):
+        raise ValueError(f"{source} rankings {'need' if preferences is None else 'use no'} preference data")
+    if loss.pairwise != (source == "offline"):
+        raise ValueError("offline rankings need a pairwise loss, and only they use one")
     lambdas = lambda_grid(config.interpolations) if source == "auto" else np.array([0.0, 1.0])
     data = RankingData(
         expert, lambdas, config.targets(lambdas), holdout_fraction, layout, time_aligned=mixup == "trajectory"
     )
     if preferences is None:
-        return Rankings(data)
-    if not loss.regresses_targets:
-        raise ValueError("offline rankings need a loss that regresses targets")
+        return Rankings(data, penalty_points=loss.gradient_penalty)
+    if source == "pref" and not loss.regresses_targets:
+        raise ValueError("pref rankings need a loss that regresses targets")
     positions = np.arange(len(preferences) + 1) / len(preferences)
     offline = OfflineRankings(
         preferences, expert, config.targets(positions), config.snippet_length, config.pref_noise, noise_seed
     )
-    return Rankings(data, offline, config.pref_weight)
+    if source == "offline":
+        return PairwiseRankings(data, offline, config.snippet_length)
+    return Rankings(data, offline, config.pref_weight, penalty_points=loss.gradient_penalty)

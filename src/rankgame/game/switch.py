@@ -3,6 +3,7 @@
 From the switch on, the policy acts in and is evaluated on ``--switch.env`` (same spaces and horizon),
 and the agent is ranked below ``--switch.expert`` (default: the shipped expert of ``--switch.env`` if
 there is one, else the same expert as before; scores are normalized by the expert being imitated).
+The pref methods' offline rankings lie below the first expert, so with them only the task may change.
 The replay buffer, the ranking data and both players' parameters carry over; the episode in progress
 is abandoned. Evaluations at steps up to ``--switch.at`` are on the first task.
 """
@@ -17,6 +18,7 @@ from rankgame.data.trajectories import TrajectoryFile
 from rankgame.envs.make import EnvSpec, env_spec, make_env
 from rankgame.errors import RankGameError
 from rankgame.game.data import DataSource, resolve_expert
+from rankgame.game.methods import METHODS
 
 
 @dataclass(frozen=True)
@@ -48,6 +50,8 @@ def plan_switch(cfg: TrainConfig, spec: EnvSpec, expert: DataSource = None) -> T
                 f"--switch.env {switch.env} has (obs_dim, act_dim, horizon) = {shapes[0]}; {cfg.env} has {shapes[1]}"
             )
     source = expert if expert is not None else switch.expert
+    if source is not None and METHODS[cfg.method].uses_preferences:
+        raise RankGameError("a switch expert cannot be combined with the pref methods' offline rankings")
     if source is None and switch.env not in shipped_envs():
         return TaskSwitch(switch.at, switch.env, None)
     data = resolve_expert(source, switch.env or cfg.env, spec, cfg.expert_trajectories, "--switch.expert data")

@@ -8,6 +8,7 @@ same way: ``env_step()`` once per environment step, then ``maybe_update(reward_p
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -53,6 +54,11 @@ class SACLearner:
     A non-finite action or observation, or a non-finite SAC loss, raises
     :class:`~rankgame.errors.NonFiniteError` before it reaches the environment or the buffer's users.
     """
+
+    on_policy = False
+    """SAC learns from its replay buffer, not only from the data of the current policy."""
+    log_columns: tuple[str, ...] = ()
+    """Metrics with a column of their own in ``metrics.csv`` besides the game's ``LOG_COLUMNS``."""
 
     def __init__(
         self,
@@ -174,6 +180,13 @@ class SACLearner:
             if not np.isfinite(values[f"losses/{name}"]):
                 raise NonFiniteError(f"the SAC {name} loss" if name != "alpha" else "the SAC temperature")
         return values
+
+    def save_policy(self, path: Path, env_id: str, **metadata: Any) -> Path:
+        """Write the current actor to ``path`` for ``rankgame evaluate`` (:func:`rankgame.policy.io.save_policy`)."""
+        from rankgame.policy.io import save_policy
+
+        params = jax.device_get(self.state.actor_params)
+        return save_policy(path, self.sac, params, env_id, self.spec.act_low, self.spec.act_high, **metadata)
 
     def policy(self, deterministic: bool = True) -> PolicyFn:
         """The current policy as ``obs (obs_dim,) -> action (act_dim,)`` in environment units."""

@@ -100,6 +100,34 @@ class OfflineRankings:
         state_targets = self.targets[self.state_rank[behavior, t]]
         return states, state_targets, snippets, self.targets[self.snippet_rank[snippet_behavior, start]]
 
+    def sample_pairs(self, rng: np.random.Generator, n_batches: int, n_pairs: int) -> tuple[np.ndarray, np.ndarray]:
+        """Pairs of snippets of two different behaviors of the chain, for a pairwise loss (T-REX).
+
+        Each pair draws two distinct behaviors uniformly and one snippet of ``l`` steps from each; as in
+        T-REX (Brown et al. 2019, App. A) the better behavior's snippet starts no earlier than the
+        worse one's, so that it is not preferred only for being further along. With preference noise,
+        the order of a pair follows the noisy labels of its snippets' starts.
+
+        Returns:
+            the better snippets ``(n, S, l, d)`` and the worse ones ``(n, S, l, d)``, S = ``n_pairs``.
+        """
+        shape = (n_batches, n_pairs)
+        first = rng.integers(0, self.n_behaviors, size=shape)
+        second = (first + rng.integers(1, self.n_behaviors, size=shape)) % self.n_behaviors
+        worse, better = np.minimum(first, second), np.maximum(first, second)
+        n_starts = self.horizon - self.snippet_length + 1
+        start_worse = rng.integers(0, n_starts, size=shape)
+        start_better = start_worse + (rng.uniform(size=shape) * (n_starts - start_worse)).astype(np.int64)
+        flip = self.snippet_rank[better, start_better] < self.snippet_rank[worse, start_worse]
+        steps = np.arange(self.snippet_length)
+
+        def snippets(behavior: np.ndarray, start: np.ndarray) -> np.ndarray:
+            length = self.snippet_length
+            return self._states(rng, np.repeat(behavior[..., None], length, axis=-1), start[..., None] + steps)
+
+        b, w = snippets(better, start_better), snippets(worse, start_worse)
+        return np.where(flip[..., None, None], w, b), np.where(flip[..., None, None], b, w)
+
     def _states(self, rng: np.random.Generator, behavior: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Inputs ``(n, B, [l,] d)`` at times ``t`` of behaviors ``behavior`` (both ``(n, B[, l])``).
 

@@ -47,6 +47,8 @@ class RewardConfig:
     """Ranking inputs per gradient step."""
     r_max: float = 10.0
     """Rewards given to the policy are bounded to [-r_max, r_max]."""
+    gradient_penalty: float = 10.0
+    """Weight of the gradient penalty of the losses that have one (logistic-gp: dac, dacfo; DAC's 10)."""
 
     def validate(self) -> None:
         """Raise ``ValueError`` with a one-line reason if the values make no sense together."""
@@ -57,6 +59,7 @@ class RewardConfig:
                 (self.lr > 0 and self.weight_decay >= 0, "reward lr must be positive and weight_decay >= 0"),
                 (self.batch_size > 0, "reward batch_size must be positive"),
                 (self.r_max > 0, "r_max must be positive"),
+                (self.gradient_penalty >= 0, "reward gradient_penalty must be >= 0"),
             ]
         )
 
@@ -101,7 +104,7 @@ class RewardPlayer:
         self.rankings = rankings
         self.net = RewardNet(config.hidden_sizes, columns, spectral_norm)
         self.tx = optax.chain(optax.add_decayed_weights(config.weight_decay), optax.adam(config.lr))
-        self._objective = rankings.objective(self.net.apply, loss, config.r_max)
+        self._objective = rankings.objective(self.net.apply, loss, config.r_max, config.gradient_penalty)
         self._update = jax.jit(self._update_many, donate_argnums=(0,))
         self._holdout_loss = jax.jit(self._weighted_loss)
         self._mean_reward = jax.jit(self._weighted_mean_reward)

@@ -131,6 +131,18 @@ class RankingData:
         inputs = self._mix(rows[..., 0], rows[..., 1], experts, expert_steps, group)
         return inputs, self.targets[group], (group == len(self.lambdas) - 1).astype(np.float32)
 
+    def sample_interpolates(self, rng: np.random.Generator, n_batches: int, batch_size: int) -> np.ndarray:
+        """Random interpolations ``a + u (e - a)``, ``u ~ U(0, 1)``, of agent training rows and expert
+        states from uniformly drawn trajectories and time steps: ``(n, B, d)``, the points of a
+        gradient penalty (Gulrajani et al. 2017)."""
+        if len(self.train_rows) == 0:
+            raise ValueError("the ranking dataset has no agent data yet")
+        shape = (n_batches, batch_size)
+        rows = self.train_rows[rng.integers(0, len(self.train_rows), size=shape)]
+        a = self.agent[rows[..., 0], rows[..., 1]]
+        e = self.expert[rng.integers(0, len(self.expert), size=shape), rng.integers(0, self.horizon, size=shape)]
+        return a + rng.uniform(size=(*shape, 1)).astype(np.float32) * (e - a)
+
     def holdout(self, max_rows: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every mixture of the holdout rows: inputs ``(R G, d)``, targets ``(R G,)``, is-expert ``(R G,)``.
 

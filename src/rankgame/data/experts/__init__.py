@@ -23,15 +23,16 @@ EXPERT_DIR = Path(__file__).parent
 
 
 def shipped_envs() -> list[str]:
-    """Environment ids with shipped expert data, sorted (variants included)."""
-    return sorted([*shipped_ids(EXPERT_DIR), *OBS_PREFIX_VARIANTS])
+    """Environment ids with shipped expert data, sorted (variants of a task with shipped data included)."""
+    ids = shipped_ids(EXPERT_DIR)
+    return sorted([*ids, *(env_id for env_id, (source, _) in OBS_PREFIX_VARIANTS.items() if source in ids)])
 
 
 def shipped_expert_path(env_id: str) -> Path:
     """The shipped file that holds the expert data of ``env_id`` (for a variant, that of its source task);
     a :class:`~rankgame.errors.RankGameError` if there is none."""
     source_id = OBS_PREFIX_VARIANTS.get(env_id, (env_id, 0))[0]
-    return shipped_path(EXPERT_DIR, source_id, "expert data", "pass your own file")
+    return shipped_path(EXPERT_DIR, source_id, "expert data", "pass your own file", shipped_envs())
 
 
 def load_shipped_expert(env_id: str) -> TrajectoryFile:
