@@ -38,30 +38,12 @@ from typing import NamedTuple
 
 import numpy as np
 
+from rankgame.data.published import RELEASED_CURVES, TABLE1
 from rankgame.envs.variants import OBS_PREFIX_VARIANTS
 
-#: Authors' released curves (LfO, 1 expert trajectory; hari-sikchi/rank-game, learning_curves/LfO/*/
-#: {pal,ral}_results.txt), mean return over their seeds normalized by their experts and random returns
-#: (Hopper 3536 / 13.8, HalfCheetah 13051 / -271.9, Walker2d 5457 / 1.5, Ant 5926 / -62.0,
-#: Humanoid 5566 / 112.2). Each released curve is a moving average over 20 evaluations, one every
-#: 1000 steps: the changes between successive points are anticorrelated at a lag of exactly 20 points
-#: (-0.51 on Hopper RANK-PAL(auto) from 120k to 306k; at no other lag below -0.24), the mark of an
-#: evaluation entering the window and leaving it 20 points later.
+#: Authors' released curves (see :mod:`rankgame.data.published`).
 PUBLISHED = {
-    "rank-pal-auto": {
-        "Hopper-v5": {100_000: 86, 300_000: 92},
-        "HalfCheetah-v5": {100_000: 47, 300_000: 79},
-        "Walker2d-v5": {100_000: 18, 300_000: 65},
-        "Ant-v5": {100_000: 22, 300_000: 80},
-        "Humanoid-v5": {100_000: 5, 300_000: 68},
-    },
-    "rank-ral-auto": {
-        "Hopper-v5": {100_000: 92, 300_000: 97},
-        "HalfCheetah-v5": {100_000: 20, 300_000: 72},
-        "Walker2d-v5": {100_000: 22, 300_000: 87},
-        "Ant-v5": {100_000: 39, 300_000: 69},
-        "Humanoid-v5": {100_000: 4, 300_000: 49},
-    },
+    method: {env: dict(points) for env, points in curves.items()} for method, curves in RELEASED_CURVES.items()
 }
 # The variants without contact forces are observed as the authors' gym -v2 tasks were: same figures.
 for _curves in PUBLISHED.values():
@@ -215,10 +197,11 @@ def window_mean(scores: dict[int, float], step: int, window: int) -> float:
 
 
 def mean_and_std(values: list[float]) -> tuple[float | None, float | None]:
-    """Mean and standard deviation rounded to 0.1, or (None, None) for no values."""
+    """Mean and sample standard deviation (n - 1) rounded to 0.1; None for what n does not define."""
     if not values:
         return None, None
-    return round(float(np.mean(values)), 1), round(float(np.std(values)), 1)
+    std = round(float(np.std(values, ddof=1)), 1) if len(values) > 1 else None
+    return round(float(np.mean(values)), 1), std
 
 
 def summarize(args: argparse.Namespace, all_scores: RunScores) -> list[dict]:
@@ -243,9 +226,17 @@ def summarize(args: argparse.Namespace, all_scores: RunScores) -> list[dict]:
                         "window_mean": window,
                         "window_std": window_std,
                         "published": PUBLISHED.get(method, {}).get(env, {}).get(step),
+                        "paper_2m": TABLE1.get(method, {}).get(env),
                     }
                 )
     return table
+
+
+def _pm(mean: float | None, std: float | None) -> str:
+    """``mean ± std`` as table text: ``-`` without a mean, the mean alone without a std (one seed)."""
+    if mean is None:
+        return "-"
+    return f"{mean}" if std is None else f"{mean} ± {std}"
 
 
 def curve_mean(scores: dict[int, float], steps: int) -> float:
@@ -321,14 +312,17 @@ def main() -> None:
     table, runs = summarize(args, all_scores), per_run(args, all_scores)
     print(json.dumps({"at_steps": table, "runs": runs}))
     window = f"mean over the last {args.window // 1000}k steps"
-    print(f"\n| env | method | steps | seeds | normalized score | {window} | published, same method |")
-    print("| --- | --- | --- | --- | --- | --- | --- |")
+    print(
+        f"\n| env | method | steps | seeds | normalized score (mean ± sample std) | {window} "
+        "| authors' curve, same step | paper, Table 1 at 2M |"
+    )
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for row in table:
-        score = "-" if row["mean"] is None else f"{row['mean']} ± {row['std']}"
-        smoothed = "-" if row["window_mean"] is None else f"{row['window_mean']} ± {row['window_std']}"
+        paper = "-" if row["paper_2m"] is None else f"{row['paper_2m'][0]} ± {row['paper_2m'][1]}"
         print(
-            f"| {row['env']} | {row['method']} | {row['step'] // 1000}k | {row['seeds']} | {score} | {smoothed} | "
-            f"{row['published'] or '-'} |"
+            f"| {row['env']} | {row['method']} | {row['step'] // 1000}k | {row['seeds']} "
+            f"| {_pm(row['mean'], row['std'])} | {_pm(row['window_mean'], row['window_std'])} "
+            f"| {row['published'] or '-'} | {paper} |"
         )
     half = f"{args.steps // 2000}k-{args.steps // 1000}k"
     print(

@@ -5,7 +5,12 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 import re
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import jax
@@ -216,10 +221,16 @@ def test_an_option_or_setting_a_method_cannot_use_is_refused(options: dict, mess
         TrainConfig(**options).validate()
 
 
-def _train_rows(args: list[str], out: Path) -> list[dict[str, str]]:
-    assert main(["train", *args, "--eval-every", "1000", "--eval-episodes", "10", "--out", str(out)]) == 0
+def _read_rows(out: Path) -> list[dict[str, str]]:
+    if not (out / "metrics.csv").exists():
+        return []
     with (out / "metrics.csv").open() as handle:
         return list(csv.DictReader(handle))
+
+
+def _train_rows(args: list[str], out: Path) -> list[dict[str, str]]:
+    assert main(["train", *args, "--eval-every", "1000", "--eval-episodes", "10", "--out", str(out)]) == 0
+    return _read_rows(out)
 
 
 @pytest.mark.parametrize("method", ["dac", "dacfo"])
@@ -251,3 +262,36 @@ def test_gail_and_gaifo_imitate_the_analytic_expert_with_ppo(
     assert float(rows[-1]["normalized_score"]) > 70.0, rows
     assert float(rows[-1]["reward/expert"]) > float(rows[-1]["reward/agent"])
     assert np.isfinite(float(rows[-1]["losses/approx_kl"]))
+
+
+@pytest.mark.parametrize(
+    ("method", "options"),
+    [
+        ("gaifo", [*TOY_PPO_ARGS, "--steps", "2048", "--eval-every", "256", "--checkpoint-every", "512"]),
+        (
+            "bco",
+            ["--env", "rankgame/PointGoal-v0", "--no-progress", "--steps", "2400", "--eval-every", "200"]
+            + ["--checkpoint-every", "400", "--cloning.pre-steps", "400"],
+        ),
+    ],
+)
+def test_a_baseline_resumes_after_kill_9_with_every_evaluation_once(
+    method: str, options: list[str], toy_expert_file: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / method
+    command = [sys.executable, "-m", "rankgame", "train", "--method", method, "--expert", str(toy_expert_file)]
+    command += [*options, "--eval-episodes", "1", "--out", str(out)]
+    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 240
+    rows: list[dict[str, str]] = []
+    while time.time() < deadline and not ((out / "checkpoint.npz").exists() and len(rows) >= 4):
+        time.sleep(0.2)
+        rows = _read_rows(out)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    every = int(options[options.index("--eval-every") + 1])
+    total = int(options[options.index("--steps") + 1])
+    assert len(_read_rows(out)) < total // every, "the run finished before it could be killed"
+    resumed = subprocess.run([*command, "--resume"], capture_output=True, text=True, timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    assert [int(row["env_steps"]) for row in _read_rows(out)] == list(range(every, total + 1, every))

@@ -245,7 +245,7 @@ def test_bad_training_input_gives_one_line_errors(
         assert_one_line_error(run_main(capsys, *args), fragment)
 
     base = ["train", *TOY_TRAIN_ARGS, "--steps", "100", "--out", str(tmp_path / "x")]
-    _one_line_error([*base, "--expert", str(toy_expert_file), "--method", "gail"], "invalid choice: 'gail'")
+    _one_line_error([*base, "--expert", str(toy_expert_file), "--method", "airl"], "invalid choice: 'airl'")
     # Expert data of another environment:
     hopper = ["train", "--env", "Hopper-v5", "--expert", str(toy_expert_file), "--out", str(tmp_path / "h")]
     _one_line_error(hopper, "recorded on rankgame/PointGoal-v0, not Hopper-v5")

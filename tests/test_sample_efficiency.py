@@ -27,9 +27,11 @@ def test_summary_gives_the_point_and_the_window_over_seeds() -> None:
         ("Hopper-v5", "rank-pal-auto", 2): {90_000: 50.0},  # not yet at 100k: left out
     }
     (row,) = summarize(args, all_scores)
-    assert (row["seeds"], row["mean"], row["std"]) == (2, 60.0, 20.0)
-    assert (row["window_mean"], row["window_std"]) == (50.0, 20.0)  # seeds' windows: 30 and 70
+    # Sample standard deviation of 40 and 80: sqrt(((40 - 60)^2 + (80 - 60)^2) / (2 - 1)) = 28.28.
+    assert (row["seeds"], row["mean"], row["std"]) == (2, 60.0, 28.3)
+    assert (row["window_mean"], row["window_std"]) == (50.0, 28.3)  # seeds' windows: 30 and 70
     assert row["published"] == 86
+    assert row["paper_2m"] == (87.14, 16.14)
 
 
 def test_a_run_profile_reads_the_run_up_to_its_length() -> None:

@@ -393,6 +393,89 @@ def _cmd_plot(argv: Sequence[str]) -> int:
     return 0
 
 
+def _cmd_sweep(argv: Sequence[str]) -> int:
+    from rankgame.sweep import SweepSpec, load_spec, parse_variant, run_sweep
+
+    parser = _Parser(
+        prog=f"{PROG} sweep",
+        description="Run a grid of rankgame train runs (envs x methods x seeds x variants) on Ray Tune: one "
+        "run folder per trial in --out, ENV__METHOD__sSEED[__VARIANT]. Needs the sweep extra (Ray).",
+    )
+    parser.add_argument("--spec", type=Path, help="a TOML file with envs, methods, seeds, steps, variants, options")
+    parser.add_argument("--envs", nargs="+", help="tasks (Gymnasium ids)")
+    parser.add_argument("--methods", nargs="+", help="methods of rankgame train --method")
+    parser.add_argument("--seeds", nargs="+", type=int, help="seeds")
+    parser.add_argument("--steps", type=int, help="environment steps of every trial")
+    parser.add_argument(
+        "--variant",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE[,NAME=VALUE...]",
+        help="a set of rankgame train options, one trial per cell for each --variant (repeat it); e.g. "
+        "--variant reward.lr=1e-4 --variant reward.lr=3e-4",
+    )
+    parser.add_argument(
+        "--option",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a rankgame train option of every trial, e.g. --option eval-episodes=10 (repeat it)",
+    )
+    parser.add_argument("--out", type=Path, required=True, help="the sweep folder")
+    parser.add_argument("--resume", action="store_true", help="continue the sweep in --out (same grid)")
+    parser.add_argument("--cores", type=int, help="trials at once on this machine (default: its cores)")
+    parser.add_argument("--address", help="join a running Ray cluster (HOST:6379, or auto)")
+    parser.add_argument("--storage", help="where Ray keeps its experiment state (default: OUT/.ray)")
+    parser.add_argument("--max-failures", type=int, default=3, help="restarts of a trial whose worker died")
+    args = parser.parse_args(argv)
+    grid_args = {"envs": args.envs, "methods": args.methods, "seeds": args.seeds, "steps": args.steps}
+    if args.spec is not None:
+        spec = load_spec(args.spec)
+        given = [f"--{name}" for name, value in grid_args.items() if value is not None]
+        if given or args.variant or args.option:
+            raise UsageError(f"--spec holds the grid: drop {', '.join(given) or '--variant/--option'}")
+    else:
+        if missing := [f"--{name}" for name, value in grid_args.items() if value is None]:
+            raise UsageError(f"the grid needs {', '.join(missing)} (or --spec FILE)")
+        variants = dict(parse_variant(text) for text in args.variant)
+        options = {k: v for text in args.option for k, v in parse_variant(text)[1].items()}
+        spec = SweepSpec(tuple(args.envs), tuple(args.methods), tuple(args.seeds), args.steps, variants, options)
+    summary = run_sweep(
+        spec,
+        args.out,
+        resume=args.resume,
+        cores=args.cores,
+        address=args.address,
+        storage=args.storage,
+        max_failures=args.max_failures,
+    )
+    _print_json(summary)
+    return 1 if summary["failed"] else 0
+
+
+def _cmd_report(argv: Sequence[str]) -> int:
+    from rankgame.report import write_report
+
+    parser = _Parser(
+        prog=f"{PROG} report",
+        description="Write a results page (OUT/results.md, figures in OUT/img/) from run folders: tables at fixed "
+        "steps beside the published figures, IQM and probability of improvement with bootstrap intervals, "
+        "learning curves, stability and the runs used.",
+    )
+    parser.add_argument(
+        "runs", nargs="+", type=Path, help="run folders (config.json and metrics.csv), or folders that hold them"
+    )
+    parser.add_argument("--out", type=Path, required=True, help="folder to write results.md and img/ into")
+    parser.add_argument(
+        "--at", nargs="+", type=int, default=[100_000, 300_000], help="steps of the tables (default: 100000 300000)"
+    )
+    parser.add_argument("--boot", type=int, default=2000, help="bootstrap samples of the intervals (default: 2000)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (default: 0)")
+    args = parser.parse_args(argv)
+    print(write_report(args.runs, args.out, at=args.at, n_boot=args.boot, seed=args.seed))
+    return 0
+
+
 def _cmd_export_reward(argv: Sequence[str]) -> int:
     from rankgame.reward.export import export_reward
 
@@ -431,6 +514,8 @@ COMMANDS = {
     "preferences": (_cmd_preferences, "draw ranked trajectories from a SAC run's replay buffer (pref methods)"),
     "experts": (_cmd_experts, "list the shipped expert data"),
     "plot": (_cmd_plot, "plot learning curves of run folders"),
+    "report": (_cmd_report, "write results pages (Markdown and figures) from run folders"),
+    "sweep": (_cmd_sweep, "run a grid of train runs on Ray Tune, locally or on a cluster"),
     "export-reward": (_cmd_export_reward, "write the learned reward of a run for use outside rankgame"),
     "data": (_cmd_data, "convert trajectory data (to-minari: a local Minari dataset)"),
 }

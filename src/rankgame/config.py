@@ -19,7 +19,7 @@ from typing import Any, Literal, TypeVar, Union, get_args, get_origin
 
 from rankgame.baselines.cloning import CloningConfig
 from rankgame.errors import RankGameError, invalid_choices
-from rankgame.game.leaders import Budget, BudgetRows, LeaderConfig
+from rankgame.game.leaders import LEADERS, Budget, BudgetRows, LeaderConfig
 from rankgame.game.methods import ALL_METHODS, CLONING_METHODS, METHODS
 from rankgame.game.rankings import Mixup, RankingsConfig
 from rankgame.game.recipes import setting_value
@@ -220,8 +220,6 @@ class TrainConfig:
             )
         if self.resolved_setting == "lfo" and self.resolved_reward_input == "sa":
             raise RankGameError("--reward-input sa needs expert actions: use --setting lfd")
-        if unused := unused_settings(self):
-            raise RankGameError(f"{unused[0]} is not used by {self.method}")
         try:
             self.rankings.validate(method.rankings)
             self.reward.validate()
@@ -230,6 +228,8 @@ class TrainConfig:
             self.ppo.validate()
         except ValueError as exc:
             raise RankGameError(f"bad setting: {exc}") from None
+        if unused := unused_settings(self):
+            raise RankGameError(f"{unused[0]} is not used by {self.method}")
         if LOSSES[method.loss].regresses_targets and self.rankings.k > self.reward.r_max:
             raise RankGameError(
                 f"targets [0, {self.rankings.k}] exceed the reward bound [-{self.reward.r_max}, {self.reward.r_max}] "
@@ -254,12 +254,11 @@ _RANKINGS_OPTIONS: dict[str, tuple[str, ...]] = {
     ),
     "offline": ("rankings.pref_noise", "rankings.snippet_length"),
 }
-_LEADER_OPTIONS: dict[str, tuple[str, ...]] = {
-    "pal": ("leader.holdout_fraction", "leader.patience", "leader.max_epochs"),
-    "ral": ("leader.holdout_fraction", "leader.ral_passes"),
-    "gda": ("leader.holdout_fraction", "leader.gda_steps"),
-    "gda-replay": ("leader.holdout_fraction", "leader.gda_steps"),
-    "reward-first": ("leader.opening_steps",),
+_BUDGET_OPTIONS: dict[str, tuple[str, ...]] = {
+    "holdout": ("leader.holdout_fraction", "leader.patience", "leader.max_epochs"),
+    "passes": ("leader.holdout_fraction", "leader.ral_passes"),
+    "fixed": ("leader.holdout_fraction", "leader.gda_steps"),
+    "opening": ("leader.opening_steps",),
 }
 
 
@@ -303,7 +302,8 @@ def unused_settings(config: TrainConfig) -> list[str]:
         *(f"rankings.{f.name}" for f in dataclasses.fields(RankingsConfig)),
         *(f"leader.{f.name}" for f in dataclasses.fields(LeaderConfig)),
     ]
-    used = set(_RANKINGS_OPTIONS[method.rankings]) | set(_LEADER_OPTIONS[method.leader])
+    budget = config.ablation.leader_budget or LEADERS[method.leader][1]
+    used = set(_RANKINGS_OPTIONS[method.rankings]) | set(_BUDGET_OPTIONS[budget])
     if not LOSSES[method.loss].gradient_penalty:
         unused.append("reward.gradient_penalty")
     names = [

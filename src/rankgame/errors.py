@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import types
 import typing
 from typing import Any, Literal
 
@@ -62,7 +63,13 @@ def invalid_choices(config: Any, prefix: str = "") -> list[str]:
         value = getattr(config, f.name)
         if dataclasses.is_dataclass(value):
             problems += invalid_choices(value, f"{prefix}{f.name}.")
-        elif typing.get_origin(hints[f.name]) is Literal and value not in typing.get_args(hints[f.name]):
-            choices = ", ".join(map(str, typing.get_args(hints[f.name])))
+            continue
+        annotation = hints[f.name]
+        if typing.get_origin(annotation) in (typing.Union, types.UnionType):  # Optional[Literal[...]]
+            if value is None:
+                continue
+            annotation = next((a for a in typing.get_args(annotation) if typing.get_origin(a) is Literal), None)
+        if typing.get_origin(annotation) is Literal and value not in typing.get_args(annotation):
+            choices = ", ".join(map(str, typing.get_args(annotation)))
             problems.append(f"{prefix}{f.name}={value!r} (choose from {choices})")
     return problems

@@ -26,7 +26,8 @@ from rankgame.game.switch import plan_switch
 from rankgame.run import Callback, RunSettings, Trainer, open_run, run
 
 
-def _expert_data(config: TrainConfig, expert: DataSource) -> tuple[TrajectoryFile, EnvSpec]:
+def expert_data(config: TrainConfig, expert: DataSource) -> tuple[TrajectoryFile, EnvSpec]:
+    """The expert data of ``config`` (or ``expert``, see :func:`train`) checked against the task, and its spec."""
     env = make_env(config.env)
     spec = env_spec(env)
     env.close()
@@ -42,11 +43,11 @@ def build_trainer(
 ) -> tuple[Trainer, tuple[str, ...]]:
     """The trainer of ``config.method`` (the ranking game, or a cloning method's) and its log columns."""
     if config.method == "bc":
-        data, _ = _expert_data(config, expert)
+        data, _ = expert_data(config, expert)
         bc = BCTrainer(config.cloning, config.env, data, config.expert_trajectories, config.seed, config.eval_episodes)
         return bc, BC_LOG_COLUMNS
     if config.method == "bco":
-        data, _ = _expert_data(config, expert)
+        data, _ = expert_data(config, expert)
         args = (config.cloning, config.env, data, config.expert_trajectories, config.seed, config.eval_episodes)
         return BCOTrainer(*args, steps=config.steps), BCO_LOG_COLUMNS
     game = build_game(config, expert, preferences, switch_expert)
@@ -61,11 +62,11 @@ def build_game(
 ) -> RankingGame:
     """The :class:`~rankgame.game.loop.RankingGame` of ``config`` with its data resolved (see :func:`train`
     for the data arguments); ``config`` must be valid and name a game method."""
-    expert_data, spec = _expert_data(config, expert)
+    data, spec = expert_data(config, expert)
     prefs = None
     if METHODS[config.method].uses_preferences:
         prefs = resolve_preferences(preferences if preferences is not None else config.preferences, config.env, spec)
-    return RankingGame(config, expert_data, prefs, plan_switch(config, spec, switch_expert))
+    return RankingGame(config, data, prefs, plan_switch(config, spec, switch_expert))
 
 
 def train(

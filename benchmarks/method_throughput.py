@@ -1,0 +1,121 @@
+"""Env-steps/s of every method against plain SAC and plain PPO on the true reward, measured in one run.
+
+Each method trains for ``--steps`` environment steps with its default settings (what ``rankgame train``
+does, evaluations every ``--eval-every`` steps included) and is compared with the plain learner of its
+policy player on the environment reward, with the same settings, timed in the same process: SAC for
+the rank-game methods, DAC, DACfO and T-REX, PPO for GAIL and GAIfO. BCO, which acts with a cloned
+policy and fits only at round ends, is compared with SAC. The first ``--warmup`` steps (random
+actions, compilation) are excluded. BC takes no environment steps and is left out.
+
+    python benchmarks/method_throughput.py --env Hopper-v5 --steps 12000 \
+        --methods rank-pal-auto dacfo gaifo bco --json
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import platform
+import tempfile
+import time
+from pathlib import Path
+
+from game_overhead import time_sac
+
+from rankgame.baselines.cloning import CloningConfig
+from rankgame.config import TrainConfig
+from rankgame.envs.make import make_env
+from rankgame.game.methods import METHODS
+from rankgame.policy.ppo_learner import PPOLearner
+from rankgame.training import build_trainer
+
+
+def time_trainer(cfg: TrainConfig, warmup: int) -> float:
+    """Env-steps/s of ``cfg.method``'s trainer after ``warmup`` steps, evaluations included."""
+    trainer, _ = build_trainer(cfg)
+    start = None
+    for step in range(1, cfg.steps + 1):
+        if step == warmup + 1:
+            start = time.perf_counter()
+        trainer.step(step)
+        if step % cfg.eval_every == 0:
+            trainer.evaluate()
+    assert start is not None
+    return (cfg.steps - warmup) / (time.perf_counter() - start)
+
+
+def time_ppo(cfg: TrainConfig, warmup: int) -> float:
+    """Env-steps/s of plain PPO on the environment reward with ``cfg.ppo``."""
+    learner = PPOLearner(make_env(cfg.env), cfg.ppo, cfg.seed)
+    start = None
+    for step in range(1, cfg.steps + 1):
+        if step == warmup + 1:
+            start = time.perf_counter()
+        learner.env_step()
+        learner.maybe_update()
+    assert start is not None
+    return (cfg.steps - warmup) / (time.perf_counter() - start)
+
+
+def cpu_model() -> str:
+    """The processor's model name (from /proc/cpuinfo where there is one)."""
+    cpuinfo = Path("/proc/cpuinfo")
+    if cpuinfo.is_file():
+        for line in cpuinfo.read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    return platform.processor() or platform.machine()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--env", default="Hopper-v5")
+    parser.add_argument("--methods", nargs="+", default=["rank-pal-auto", "rank-ral-auto", "dacfo", "gaifo", "bco"])
+    parser.add_argument("--steps", type=int, default=12_000)
+    parser.add_argument("--warmup", type=int, default=2_048)
+    parser.add_argument("--eval-every", type=int, default=10_000)
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+    results = []
+    with tempfile.TemporaryDirectory() as tmp:
+        base = TrainConfig(env=args.env, steps=args.steps, eval_every=args.eval_every, out=Path(tmp))
+        reference = {"sac": time_sac(base, args.warmup), "ppo": time_ppo(base, args.warmup)}
+        for method in args.methods:
+            player = METHODS[method].policy if method in METHODS else "sac"
+            cfg = TrainConfig(env=args.env, method=method, steps=args.steps, eval_every=args.eval_every, out=Path(tmp))
+            if method == "bco":  # time the rounds after the pre-demonstration phase
+                cfg = dataclasses.replace(cfg, cloning=CloningConfig(pre_steps=args.warmup))
+            rate = time_trainer(cfg, args.warmup)
+            results.append(
+                {
+                    "method": method,
+                    "steps_per_s": round(rate, 1),
+                    "reference": player,
+                    "ratio_to_reference": round(rate / reference[player], 3),
+                }
+            )
+    summary = {
+        "env": args.env,
+        "timed_steps": args.steps - args.warmup,
+        "cpu": cpu_model(),
+        "sac_steps_per_s": round(reference["sac"], 1),
+        "ppo_steps_per_s": round(reference["ppo"], 1),
+        "methods": results,
+    }
+    if args.json:
+        print(json.dumps(summary))
+        return
+    print(
+        f"{args.env}, {summary['timed_steps']} timed steps: SAC {summary['sac_steps_per_s']} steps/s, "
+        f"PPO {summary['ppo_steps_per_s']} steps/s"
+    )
+    for row in results:
+        print(
+            f"{row['method']:>16}: {row['steps_per_s']:>7} steps/s, "
+            f"{row['ratio_to_reference']:.3f} x {row['reference']}"
+        )
+
+
+if __name__ == "__main__":
+    main()
