@@ -327,7 +327,12 @@ def run_sweep(
         if address is not None:
             ray.init(address=address, runtime_env=runtime_env, log_to_driver=False)
         else:
-            ray.init(num_cpus=cores or os.cpu_count() or 1, runtime_env=runtime_env, log_to_driver=False)
+            ray.init(
+                num_cpus=cores or os.cpu_count() or 1,
+                runtime_env=runtime_env,
+                log_to_driver=False,
+                include_dashboard=False,
+            )
     except (ConnectionError, RuntimeError, ValueError) as exc:
         raise RankGameError(f"cannot start or join Ray at {address or 'this machine'}: {exc}") from None
     try:

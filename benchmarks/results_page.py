@@ -1,0 +1,37 @@
+"""Generate ``docs/results.md`` (and its figures in ``docs/img/``) from the archived runs, with one command.
+
+    python benchmarks/results_page.py            # or: rankgame report ARCHIVES... --out docs
+
+The archives named in :data:`ARCHIVES` are the runs the results page reports: the paper's settings on
+the tuning seeds (0-2), the held-out seeds (100 and up), the baselines, and the recipes' variants. The
+page labels each group with its archive folder, so what was tuned and what was held out stays visible.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from rankgame.report import write_report
+
+ROOT = Path(__file__).resolve().parent / "results"
+
+#: Archive folders of the results page, in the order they are read.
+ARCHIVES = (
+    "sample-efficiency",  # the paper's settings, seeds 0-2
+    "stability-heldout-hopper-pal",  # the paper's settings, held-out seeds
+    "baselines-lfo",  # GAIfO, DACfO, BCO (LfO, one expert trajectory)
+)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "docs")
+    parser.add_argument("--boot", type=int, default=2000)
+    args = parser.parse_args()
+    archives = [ROOT / name for name in ARCHIVES if (ROOT / name).is_dir()]
+    print(write_report(archives, args.out, n_boot=args.boot))
+
+
+if __name__ == "__main__":
+    main()
