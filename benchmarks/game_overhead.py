@@ -21,12 +21,13 @@ from rankgame.config import TrainConfig
 from rankgame.envs.make import make_env
 from rankgame.policy.learner import SACLearner
 from rankgame.policy.sac import sac_preset
-from rankgame.training import build_game
+from rankgame.training import build_trainer
 
 
 def time_game(cfg: TrainConfig, warmup: int) -> float:
-    """Env-steps/s of the ranking game's loop after ``warmup`` steps (same work as ``rankgame train``)."""
-    game = build_game(cfg)
+    """Env-steps/s of ``cfg.method``'s trainer after ``warmup`` steps (same work as ``rankgame train``,
+    evaluations every ``cfg.eval_every`` steps included)."""
+    game, _ = build_trainer(cfg)
     start = None
     for step in range(1, cfg.steps + 1):
         if step == warmup + 1:

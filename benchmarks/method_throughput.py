@@ -21,28 +21,13 @@ import tempfile
 import time
 from pathlib import Path
 
-from game_overhead import time_sac
+from game_overhead import time_game, time_sac
 
 from rankgame.baselines.cloning import CloningConfig
 from rankgame.config import TrainConfig
 from rankgame.envs.make import make_env
 from rankgame.game.methods import METHODS
 from rankgame.policy.ppo_learner import PPOLearner
-from rankgame.training import build_trainer
-
-
-def time_trainer(cfg: TrainConfig, warmup: int) -> float:
-    """Env-steps/s of ``cfg.method``'s trainer after ``warmup`` steps, evaluations included."""
-    trainer, _ = build_trainer(cfg)
-    start = None
-    for step in range(1, cfg.steps + 1):
-        if step == warmup + 1:
-            start = time.perf_counter()
-        trainer.step(step)
-        if step % cfg.eval_every == 0:
-            trainer.evaluate()
-    assert start is not None
-    return (cfg.steps - warmup) / (time.perf_counter() - start)
 
 
 def time_ppo(cfg: TrainConfig, warmup: int) -> float:
@@ -86,7 +71,7 @@ def main() -> None:
             cfg = TrainConfig(env=args.env, method=method, steps=args.steps, eval_every=args.eval_every, out=Path(tmp))
             if method == "bco":  # time the rounds after the pre-demonstration phase
                 cfg = dataclasses.replace(cfg, cloning=CloningConfig(pre_steps=args.warmup))
-            rate = time_trainer(cfg, args.warmup)
+            rate = time_game(cfg, args.warmup)
             results.append(
                 {
                     "method": method,

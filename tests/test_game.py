@@ -104,7 +104,7 @@ def test_a_variant_without_contact_forces_imitates_its_tasks_shipped_expert_thro
     game = build_game(TrainConfig(env="rankgame/AntNoContact-v5"))
     assert game.learner.spec.obs_dim == 27
     assert game.rankings.data.expert.shape == (1, 1000, 28)  # one trajectory, H = 1000, 27 entries and the flag
-    assert game.expert_return == pytest.approx(5004.7, abs=0.1)  # the Ant-v5 expert's scale
+    assert game.scale.expert_return == pytest.approx(5004.7, abs=0.1)  # the Ant-v5 expert's scale
 
 
 def test_a_checkpoint_restores_every_piece_of_the_game(toy_expert_file: Path, tmp_path: Path) -> None:

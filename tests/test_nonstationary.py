@@ -69,7 +69,7 @@ def test_a_switch_moves_the_game_to_the_new_task_and_expert(
     mirrored = load_trajectories(toy_mirrored_expert_file)
     assert game.learner.env.spec.id == game.eval_env.spec.id == POINT_GOAL_MIRRORED_ID
     np.testing.assert_allclose(data.expert[0, :, 0], mirrored.trajectories[0].obs[:40, 0])
-    assert game.expert_return == pytest.approx(mirrored.returns.mean())
+    assert game.scale.expert_return == pytest.approx(mirrored.returns.mean())
     assert len(data.holdout_rows) == old_rows and len(data.agent) == 10  # agent data carries over
     game.env_step()
     assert game.learner.env_steps == 401
@@ -80,7 +80,7 @@ def test_a_switch_moves_the_game_to_the_new_task_and_expert(
     assert resumed.learner.env.spec.id == POINT_GOAL_MIRRORED_ID
     np.testing.assert_array_equal(resumed.rankings.data.expert, data.expert)
     np.testing.assert_array_equal(resumed.rankings.data.holdout_rows, data.holdout_rows)
-    assert resumed.expert_return == game.expert_return
+    assert resumed.scale.expert_return == game.scale.expert_return
 
 
 def test_the_game_follows_a_changed_intent(

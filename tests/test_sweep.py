@@ -16,7 +16,7 @@ import pytest
 from conftest import assert_one_line_error, run_main
 
 from rankgame.errors import RankGameError
-from rankgame.sweep import SWEEP_FILE, SweepSpec, load_spec, parse_variant, record_grid, trials
+from rankgame.sweep import SWEEP_FILE, SweepSpec, check_grid, load_spec, parse_variant, trials, write_grid
 
 TOY = "rankgame/PointGoal-v0"
 
@@ -83,13 +83,16 @@ def test_a_spec_file_holds_the_grid_and_bad_ones_are_named(tmp_path: Path) -> No
 
 def test_a_resume_with_another_grid_is_refused(tmp_path: Path) -> None:
     spec = SweepSpec(("Hopper-v5",), ("dacfo",), (0,), 100)
-    record_grid(tmp_path, spec, resume=False)
+    with pytest.raises(RankGameError, match="nothing to resume"):
+        check_grid(tmp_path, spec, resume=True)
+    check_grid(tmp_path, spec, resume=False)
+    write_grid(tmp_path, spec)
     assert json.loads((tmp_path / SWEEP_FILE).read_text())["grid"]["methods"] == ["dacfo"]
     with pytest.raises(RankGameError, match="already holds a sweep"):
-        record_grid(tmp_path, spec, resume=False)
+        check_grid(tmp_path, spec, resume=False)
     with pytest.raises(RankGameError, match="has another grid"):
-        record_grid(tmp_path, SweepSpec(("Hopper-v5",), ("dacfo",), (0, 1), 100), resume=True)
-    record_grid(tmp_path, spec, resume=True)  # the same grid: fine
+        check_grid(tmp_path, SweepSpec(("Hopper-v5",), ("dacfo",), (0, 1), 100), resume=True)
+    check_grid(tmp_path, spec, resume=True)  # the same grid: fine
 
 
 @pytest.mark.parametrize(
@@ -100,6 +103,8 @@ def test_a_resume_with_another_grid_is_refused(tmp_path: Path) -> None:
         (["--methods", "dacfo", "--option", "reward.nonsense=1"], "unrecognized arguments: --reward.nonsense 1"),
         (["--methods", "dacfo", "--seeds"], "expected at least one argument"),
         (["--methods", "dacfo", "--variant", "reward.lr"], "name=value pairs"),
+        (["--methods", "dacfo", "--address", "127.0.0.1:1"], "cannot reach a Ray cluster at 127.0.0.1:1"),
+        (["--methods", "dacfo", "--address", "nowhere"], "give HOST:PORT"),
     ],
 )
 def test_bad_grids_are_one_line_errors_and_start_nothing(

@@ -33,6 +33,7 @@ import io
 import json
 import os
 import shlex
+import socket
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -261,8 +262,9 @@ def tune_trainable(base_argv: Sequence[str], out: str | Path) -> Callable[[dict[
     return trainable
 
 
-def record_grid(out: Path, spec: SweepSpec, resume: bool) -> None:
-    """Write ``out/sweep.json``, or with ``resume`` check that the recorded grid is ``spec``'s."""
+def check_grid(out: Path, spec: SweepSpec, resume: bool) -> None:
+    """With ``resume``, check that ``out/sweep.json`` records ``spec``'s grid; without, that ``out`` holds
+    no sweep yet. One-line :class:`RankGameError` otherwise; nothing is written."""
     path = out / SWEEP_FILE
     if out.exists() and not out.is_dir():
         raise RankGameError(f"--out {out} is a file, not a folder")
@@ -275,10 +277,28 @@ def record_grid(out: Path, spec: SweepSpec, resume: bool) -> None:
                 f"the sweep in {out} has another grid; resume it with the same envs, methods, seeds, steps, "
                 f"variants and options (recorded: {json.dumps(recorded.to_json())})"
             )
-        return
-    if path.exists():
+    elif path.exists():
         raise RankGameError(f"{out} already holds a sweep; pass --resume to continue it or choose another --out")
-    atomic_write_bytes(path, json.dumps({"grid": spec.to_json(), "command": shlex.join(sys.argv)}, indent=2).encode())
+
+
+def write_grid(out: Path, spec: SweepSpec) -> None:
+    """Record the grid and the command in ``out/sweep.json`` (atomically)."""
+    payload = {"grid": spec.to_json(), "command": shlex.join(sys.argv)}
+    atomic_write_bytes(out / SWEEP_FILE, json.dumps(payload, indent=2).encode())
+
+
+def require_reachable(address: str, timeout_s: float = 5.0) -> None:
+    """A one-line :class:`RankGameError` unless something listens at ``HOST:PORT`` (``auto`` is not checked)."""
+    if address == "auto":
+        return
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit():
+        raise RankGameError(f"--address {address!r}: give HOST:PORT (the head node's, e.g. node1:6379) or auto")
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout_s):
+            pass
+    except OSError as exc:
+        raise RankGameError(f"cannot reach a Ray cluster at {address}: {exc.strerror or exc}") from None
 
 
 def run_sweep(
@@ -309,19 +329,23 @@ def run_sweep(
     """
     out = Path(out).resolve()
     spec.validate()
+    if address is not None:
+        require_reachable(address)
     grid = trials(spec, out)
     check_trials(grid)
-    record_grid(out, spec, resume)
+    check_grid(out, spec, resume)
     todo = [trial for trial in grid if not trial_finished(out / trial.name, trial.steps)]
     summary: dict[str, Any] = {"trials": len(grid), "ran": len(todo), "skipped": len(grid) - len(todo), "failed": []}
-    if not todo:
-        return summary
     os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")  # the classic progress table (CLIReporter)
     try:
         import ray
         from ray import tune
     except ImportError:
         raise RankGameError("rankgame sweep needs Ray: pip install 'rankgame[sweep]'") from None
+    if not resume:
+        write_grid(out, spec)
+    if not todo:
+        return summary
     runtime_env = {"env_vars": SINGLE_THREAD_ENV}
     try:
         if address is not None:

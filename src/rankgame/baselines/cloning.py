@@ -22,7 +22,6 @@ the loss :func:`tanh_gaussian_nll`, the fitting helper :func:`fused_fit`, and
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,22 +34,18 @@ import numpy as np
 import optax
 
 from rankgame.checkpoint import flatten_tree, unflatten_tree
-from rankgame.data.experts import normalized_score
 from rankgame.data.trajectories import Trajectory, TrajectoryFile
 from rankgame.envs.make import EnvSpec, env_spec, make_env
 from rankgame.envs.rollout import (
     EVAL_SEED_OFFSET,
     PolicyFn,
-    episode_returns,
-    evaluate_episodes,
-    random_policy,
-    success_postfix,
     to_normalized_action,
 )
 from rankgame.errors import NonFiniteError, RankGameError, nonfinite_fields, require
 from rankgame.policy.io import save_policy
 from rankgame.policy.learner import make_policy_fn
 from rankgame.policy.sac import SAC, SACConfig
+from rankgame.scores import ScoreScale, score_postfix
 
 #: ``|a|`` of a normalized action is clipped to at most this before ``atanh`` in :func:`tanh_gaussian_nll`.
 #: Expert actions often sit exactly on the bounds (a saturated controller, or a tanh policy rounded to
@@ -388,17 +383,7 @@ class ClonedPolicyTrainer:
         self.grad_steps = 0
         """Gradient steps of the policy so far."""
         self.bc_loss: float | None = None
-        self._set_score_scale(expert)
-
-    def _set_score_scale(self, expert: TrajectoryFile) -> None:
-        """The expert and random returns that normalize scores (as :class:`~rankgame.game.loop.RankingGame`)."""
-        self.expert_return = float(expert.returns.mean())
-        self.random_return = float(expert.metadata.get("random_return_mean", np.nan))
-        if not np.isfinite(self.random_return):  # expert file without it: measure on the evaluation env
-            policy = random_policy(self.eval_env, self.seed)
-            self.random_return = float(episode_returns(self.eval_env, policy, 20, self.seed).mean())
-        if self.expert_return == self.random_return:
-            print("expert and random returns are equal: the normalized score is not defined", file=sys.stderr)
+        self.scale = ScoreScale.of(expert, self.eval_env, seed)
 
     def policy(self, deterministic: bool = True, rng: np.random.Generator | None = None) -> PolicyFn:
         """The current cloned policy in environment units (its mean action when deterministic)."""
@@ -409,17 +394,8 @@ class ClonedPolicyTrainer:
         return True
 
     def evaluate(self) -> dict[str, float]:
-        """The deterministic policy's mean true return, its normalized score and, for tasks that report
-        success, its success rate (``eval_return``, ``normalized_score``, ``eval_success``)."""
-        returns, success = evaluate_episodes(
-            self.eval_env, self.policy(), self.eval_episodes, self.seed + EVAL_SEED_OFFSET
-        )
-        mean = float(returns.mean())
-        result = {
-            "eval_return": mean,
-            "normalized_score": float(normalized_score(mean, self.expert_return, self.random_return)),
-        }
-        return result if success is None else {**result, "eval_success": success}
+        """The deterministic policy's evaluation row (:meth:`~rankgame.scores.ScoreScale.evaluate`)."""
+        return self.scale.evaluate(self.eval_env, self.policy(), self.eval_episodes, self.seed + EVAL_SEED_OFFSET)
 
     def training_metrics(self) -> dict[str, float]:
         """``losses/bc`` (mean negative log-likelihood of the last fit, once there was one) and ``grad_steps``."""
@@ -427,12 +403,7 @@ class ClonedPolicyTrainer:
         return metrics if self.bc_loss is None else {"losses/bc": self.bc_loss, **metrics}
 
     def postfix(self, row: dict[str, float]) -> dict[str, str]:
-        """Progress-bar fields: normalized score, return and, where known, success rate."""
-        return {
-            "score": f"{row['normalized_score']:.1f}",
-            "ret": f"{row['eval_return']:.0f}",
-            **success_postfix(row.get("eval_success")),
-        }
+        return score_postfix(row)
 
     def save_policies(self, out: Path, step: int, row: dict[str, float]) -> None:
         """Write the current policy to ``out / policy.msgpack`` for ``rankgame evaluate``."""

@@ -10,7 +10,6 @@ hands to the run harness.
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -19,15 +18,10 @@ import numpy as np
 
 from rankgame.checkpoint import flatten_tree, unflatten_tree
 from rankgame.config import TrainConfig
-from rankgame.data.experts import normalized_score
 from rankgame.data.trajectories import Trajectory, TrajectoryFile
 from rankgame.envs.make import env_spec, make_env
 from rankgame.envs.rollout import (
     EVAL_SEED_OFFSET,
-    episode_returns,
-    evaluate_episodes,
-    random_policy,
-    success_postfix,
     to_normalized_action,
 )
 from rankgame.errors import NonFiniteError, RankGameError
@@ -40,6 +34,7 @@ from rankgame.policy.players import iteration_steps, make_policy_player
 from rankgame.reward.inputs import InputLayout, parse_obs_columns
 from rankgame.reward.losses import LOSSES
 from rankgame.reward.player import RewardPlayer
+from rankgame.scores import ScoreScale, score_postfix
 
 #: Checkpoint array of the episodes finished in the iteration in progress.
 FINISHED_KEY = "game/finished"
@@ -130,7 +125,7 @@ class RankingGame:
         self.learner = make_policy_player(self.method.policy, self.env, cfg, self.player.reward_fn)
         self.reward_state = self.player.init(jax.random.fold_in(jax.random.key(cfg.seed), 1))
         self.rng = np.random.default_rng([cfg.seed, 1])
-        self._set_score_scale(expert)
+        self.scale = ScoreScale.of(expert, self.eval_env, cfg.seed)
         self.switch = switch
         if switch is not None and switch.expert is not None:
             self._switch_inputs = self._inputs(
@@ -150,16 +145,6 @@ class RankingGame:
     def log_columns(self) -> tuple[str, ...]:
         """The columns of ``metrics.csv``: :data:`LOG_COLUMNS` and those of the method's loss and policy player."""
         return (*LOG_COLUMNS, *self.player.loss.log_columns, *self.learner.log_columns)
-
-    def _set_score_scale(self, expert: TrajectoryFile) -> None:
-        """The expert and random returns that normalize scores, from the expert file's records."""
-        self.expert_return = float(expert.returns.mean())
-        self.random_return = float(expert.metadata.get("random_return_mean", np.nan))
-        if not np.isfinite(self.random_return):  # expert file without it: measure on the evaluation env
-            policy = random_policy(self.eval_env, self.cfg.seed)
-            self.random_return = float(episode_returns(self.eval_env, policy, 20, self.cfg.seed).mean())
-        if self.expert_return == self.random_return:
-            print("expert and random returns are equal: the normalized score is not defined", file=sys.stderr)
 
     def _inputs(self, trajectories: list[Trajectory] | tuple[Trajectory, ...], what: str) -> np.ndarray:
         """Reward inputs ``(n, H, d)`` of recorded trajectories, padded to the horizon."""
@@ -256,35 +241,23 @@ class RankingGame:
             self._episode_obs, self._episode_acts = [], []
         if self.switch.expert is not None:
             self.rankings.data.replace_expert(self._switch_inputs, self.rng)
-            self._set_score_scale(self.switch.expert)
+            self.scale = ScoreScale.of(self.switch.expert, self.eval_env, self.cfg.seed)
 
     # --- what the run harness asks ------------------------------------------------------------
     def can_checkpoint(self, step: int) -> bool:
         return step % self.n_pol == 0
 
     def evaluate(self) -> dict[str, float]:
-        """The deterministic policy's mean true return, its normalized score and, for tasks that report
-        success, its success rate (``eval_return``, ``normalized_score``, ``eval_success``)."""
-        returns, success = evaluate_episodes(
+        """The deterministic policy's evaluation row (:meth:`~rankgame.scores.ScoreScale.evaluate`)."""
+        return self.scale.evaluate(
             self.eval_env, self.learner.policy(), self.cfg.eval_episodes, self.cfg.seed + EVAL_SEED_OFFSET
         )
-        mean = float(returns.mean())
-        result = {
-            "eval_return": mean,
-            "normalized_score": float(normalized_score(mean, self.expert_return, self.random_return)),
-        }
-        return result if success is None else {**result, "eval_success": success}
 
     def training_metrics(self) -> dict[str, float]:
         return {**self.reward_metrics, **self.policy_metrics}
 
     def postfix(self, row: dict[str, float]) -> dict[str, str]:
-        """Progress-bar fields: normalized score, return and, where known, success rate."""
-        return {
-            "score": f"{row['normalized_score']:.1f}",
-            "ret": f"{row['eval_return']:.0f}",
-            **success_postfix(row.get("eval_success")),
-        }
+        return score_postfix(row)
 
     def save_policies(self, out: Path, step: int, row: dict[str, float]) -> None:
         """Write the current actor for ``rankgame evaluate``, marked as one that reads the absorbing flag
