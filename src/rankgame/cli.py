@@ -232,7 +232,10 @@ def train_config_from_argv(argv: Sequence[str]) -> tuple[TrainConfig, str | None
             "below include it, explicit options override it (default: paper)",
         )
 
-    description = "Imitate an expert by playing the ranking game (RANK-PAL / RANK-RAL / IMIT)."
+    description = (
+        "Imitate an expert by playing the ranking game (RANK-PAL / RANK-RAL / IMIT), or with a baseline in the "
+        "same harness (GAIL, GAIfO, DAC, DACfO, T-REX, BC, BCO; see docs/methods.md)."
+    )
     cfg, explicit = _config_with_sac_preset(argv, "train", description, make_config, "paper", add_recipe)
     if "recipe" in explicit:
         explicit |= set(settings)
@@ -507,7 +510,7 @@ def _cmd_data(argv: Sequence[str]) -> int:
 
 
 COMMANDS = {
-    "train": (_cmd_train, "imitate an expert with the ranking game (rank-pal-auto, rank-ral-auto, ...)"),
+    "train": (_cmd_train, "imitate an expert: the ranking game (rank-pal-auto, ...) or a baseline (dacfo, bc, ...)"),
     "evaluate": (_cmd_evaluate, "roll out a saved policy: return and normalized score"),
     "expert": (_cmd_expert, "train a SAC expert on the true reward and record its trajectories"),
     "record": (_cmd_record, "record trajectories of a saved policy"),
