@@ -240,7 +240,9 @@ def markdown_table(rows: list[dict], at: list[int], steps: int) -> str:
     """The summary as a Markdown table: one row per (env, variant), one column per step of ``at``."""
 
     def cell(mean: float | None, std: float | None, seeds: int) -> str:
-        return "-" if mean is None else f"{mean} ± {std} ({seeds})"
+        if mean is None:
+            return "-"
+        return f"{mean} ({seeds})" if std is None else f"{mean} ± {std} ({seeds})"
 
     header = " | ".join(f"{step // 1000}k" for step in at)
     lines = [

@@ -37,10 +37,11 @@ def test_summary_is_the_mean_and_deviation_over_seeds(tmp_path: Path) -> None:
             rows = f"env_steps,normalized_score\n1000,{first}\n2000,{second}\n"
             (job.archived / "metrics.csv").write_text(rows)
     rows = {row["variant"]: row for row in summarize(jobs, [1000, 2000], steps=2000)}
-    assert rows["auto"]["at"][1] == {"step": 2000, "seeds": 2, "mean": 40.0, "std": 10.0}
-    assert rows["vanilla"]["at"][0] == {"step": 1000, "seeds": 1, "mean": 5.0, "std": 0.0}
-    # Each run's mean over its evaluations: auto 20 and 35, so 27.5 ± 7.5; vanilla 6.
-    assert (rows["auto"]["curve_mean"], rows["auto"]["curve_std"], rows["auto"]["curve_seeds"]) == (27.5, 7.5, 2)
+    # Sample standard deviations (n - 1): 30 and 50 give sqrt(2 * 10^2 / 1) = 14.1; one seed has none.
+    assert rows["auto"]["at"][1] == {"step": 2000, "seeds": 2, "mean": 40.0, "std": 14.1}
+    assert rows["vanilla"]["at"][0] == {"step": 1000, "seeds": 1, "mean": 5.0, "std": None}
+    # Each run's mean over its evaluations: auto 20 and 35, so 27.5 ± sqrt(2 * 7.5^2) = 10.6; vanilla 6.
+    assert (rows["auto"]["curve_mean"], rows["auto"]["curve_std"], rows["auto"]["curve_seeds"]) == (27.5, 10.6, 2)
     assert (rows["vanilla"]["curve_mean"], rows["vanilla"]["curve_seeds"]) == (6.0, 1)
     # A run that has not reached --steps has no curve mean yet; evaluations past it are not counted.
     early = {row["variant"]: row for row in summarize(jobs, [1000], steps=1000)}
@@ -48,7 +49,7 @@ def test_summary_is_the_mean_and_deviation_over_seeds(tmp_path: Path) -> None:
     assert summarize(jobs, [1000], steps=3000)[0]["curve_seeds"] == 0
     table = markdown_table(list(rows.values()), [1000, 2000], 2000).splitlines()
     assert table[0] == "| env | variant | 1k | 2k | mean of the evaluations to 2k |"
-    assert table[2] == "| Hopper-v5 | auto | 15.0 ± 5.0 (2) | 40.0 ± 10.0 (2) | 27.5 ± 7.5 (2) |"
+    assert table[2] == "| Hopper-v5 | auto | 15.0 ± 7.1 (2) | 40.0 ± 14.1 (2) | 27.5 ± 10.6 (2) |"
 
 
 def test_plot_draws_one_curve_per_variant_with_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
