@@ -337,6 +337,9 @@ def run_sweep(
     todo = [trial for trial in grid if not trial_finished(out / trial.name, trial.steps)]
     summary: dict[str, Any] = {"trials": len(grid), "ran": len(todo), "skipped": len(grid) - len(todo), "failed": []}
     os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")  # the classic progress table (CLIReporter)
+    # Ray runs its workers at niceness 15 by default: on a machine with other work the trials would
+    # starve, and the trials are the sweep's work (a local Ray reads this when it starts).
+    os.environ.setdefault("RAY_worker_niceness", "0")
     try:
         import ray
         from ray import tune
