@@ -16,6 +16,7 @@ import json
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 from rankgame.config import TrainConfig
 from rankgame.envs.make import make_env
@@ -39,17 +40,22 @@ def time_game(cfg: TrainConfig, warmup: int) -> float:
     return (cfg.steps - warmup) / (time.perf_counter() - start)
 
 
-def time_sac(cfg: TrainConfig, warmup: int) -> float:
-    """Env-steps/s of plain SAC on the environment reward with the same SAC settings."""
-    learner = SACLearner(make_env(cfg.env), cfg.sac, cfg.seed)
+def time_learner(learner: Any, steps: int, warmup: int) -> float:
+    """Env-steps/s of a policy player (``env_step`` then ``maybe_update``) on the environment reward,
+    over ``steps`` steps after the first ``warmup``."""
     start = None
-    for step in range(1, cfg.steps + 1):
+    for step in range(1, steps + 1):
         if step == warmup + 1:
             start = time.perf_counter()
         learner.env_step()
         learner.maybe_update()
     assert start is not None
-    return (cfg.steps - warmup) / (time.perf_counter() - start)
+    return (steps - warmup) / (time.perf_counter() - start)
+
+
+def time_sac(cfg: TrainConfig, warmup: int) -> float:
+    """Env-steps/s of plain SAC on the environment reward with the same SAC settings."""
+    return time_learner(SACLearner(make_env(cfg.env), cfg.sac, cfg.seed), cfg.steps, warmup)
 
 
 def main() -> None:

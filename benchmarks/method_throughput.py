@@ -18,10 +18,9 @@ import dataclasses
 import json
 import platform
 import tempfile
-import time
 from pathlib import Path
 
-from game_overhead import time_game, time_sac
+from game_overhead import time_game, time_learner, time_sac
 
 from rankgame.baselines.cloning import CloningConfig
 from rankgame.config import TrainConfig
@@ -32,15 +31,7 @@ from rankgame.policy.ppo_learner import PPOLearner
 
 def time_ppo(cfg: TrainConfig, warmup: int) -> float:
     """Env-steps/s of plain PPO on the environment reward with ``cfg.ppo``."""
-    learner = PPOLearner(make_env(cfg.env), cfg.ppo, cfg.seed)
-    start = None
-    for step in range(1, cfg.steps + 1):
-        if step == warmup + 1:
-            start = time.perf_counter()
-        learner.env_step()
-        learner.maybe_update()
-    assert start is not None
-    return (cfg.steps - warmup) / (time.perf_counter() - start)
+    return time_learner(PPOLearner(make_env(cfg.env), cfg.ppo, cfg.seed), cfg.steps, warmup)
 
 
 def cpu_model() -> str:
