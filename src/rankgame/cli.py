@@ -204,6 +204,7 @@ def train_config_from_argv(argv: Sequence[str]) -> tuple[TrainConfig, str | None
     is that of the run's task and method unless ``--env`` or ``--method`` is given.
     """
     from rankgame.config import TrainConfig
+    from rankgame.game.methods import OWN_TRAINER_METHODS
     from rankgame.game.recipes import RECIPES, recipe_settings, setting_value, with_settings
     from rankgame.policy.sac import SACConfig
 
@@ -234,9 +235,11 @@ def train_config_from_argv(argv: Sequence[str]) -> tuple[TrainConfig, str | None
 
     description = (
         "Imitate an expert by playing the ranking game (RANK-PAL / RANK-RAL / IMIT), or with a baseline in the "
-        "same harness (GAIL, GAIfO, DAC, DACfO, T-REX, BC, BCO; see docs/methods.md)."
+        "same harness (GAIL, GAIfO, DAC, DACfO, T-REX, BC, BCO, IQ-Learn; see docs/methods.md)."
     )
-    cfg, explicit = _config_with_sac_preset(argv, "train", description, make_config, "paper", add_recipe)
+    own = OWN_TRAINER_METHODS.get(method)
+    default_preset = own.sac_preset if own is not None and own.sac_preset is not None else "paper"
+    cfg, explicit = _config_with_sac_preset(argv, "train", description, make_config, default_preset, add_recipe)
     if "recipe" in explicit:
         explicit |= set(settings)
     if cfg.resume:

@@ -18,9 +18,10 @@ from pathlib import Path
 from typing import Any, Literal, TypeVar, Union, get_args, get_origin
 
 from rankgame.baselines.cloning import CloningConfig
+from rankgame.baselines.iq import IQConfig
 from rankgame.errors import RankGameError, invalid_choices
 from rankgame.game.leaders import LEADERS, Budget, BudgetRows, LeaderConfig
-from rankgame.game.methods import ALL_METHODS, CLONING_METHODS, METHODS
+from rankgame.game.methods import ALL_METHODS, METHODS, OWN_TRAINER_METHODS
 from rankgame.game.rankings import Mixup, RankingsConfig
 from rankgame.game.recipes import setting_value
 from rankgame.policy.ppo import PPOConfig
@@ -92,6 +93,7 @@ class TrainConfig:
         "trex",
         "bc",
         "bco",
+        "iq-learn",
     ] = "rank-pal-auto"
     """Rankings x loss x leader x policy player (see rankgame.game.methods and docs/methods.md)."""
     steps: int = 300_000
@@ -109,7 +111,7 @@ class TrainConfig:
     for ENV; make a file with `rankgame preferences`)."""
     setting: Literal["lfo", "lfd"] | None = None
     """Learn from observations only (lfo) or from observations and actions (lfd); default: lfd for
-    gail, dac and bc, lfo for every other method."""
+    gail, dac, bc and iq-learn, lfo for every other method."""
     reward_input: Literal["default", "s", "ss", "sa"] = "default"
     """Reward inputs: s, (s, s') or (s, a); default: sa for lfd, and for lfo (s, s') with gaifo and
     dacfo, s with the others."""
@@ -135,14 +137,15 @@ class TrainConfig:
     sac: SACConfig = field(default_factory=SACConfig)
     ppo: PPOConfig = field(default_factory=PPOConfig)
     cloning: CloningConfig = field(default_factory=CloningConfig)
+    iq: IQConfig = field(default_factory=IQConfig)
     switch: SwitchConfig = field(default_factory=SwitchConfig)
     ablation: AblationConfig = field(default_factory=AblationConfig)
 
     @property
     def resolved_setting(self) -> Literal["lfo", "lfd"]:
         """``setting``, or the method's own when it is None."""
-        if self.method in CLONING_METHODS:
-            return self.setting or CLONING_METHODS[self.method]
+        if self.method in OWN_TRAINER_METHODS:
+            return self.setting or OWN_TRAINER_METHODS[self.method].settings[0]
         return self.setting or METHODS[self.method].settings[0]
 
     @property
@@ -173,20 +176,21 @@ class TrainConfig:
             raise RankGameError(f"--seed must be >= 0 (got {self.seed})")
         if self.policy_updates is not None and self.policy_updates <= 0:
             raise RankGameError("--policy-updates must be positive")
-        if self.method in CLONING_METHODS:
-            self._validate_cloning()
+        if self.method in OWN_TRAINER_METHODS:
+            self._validate_own_trainer()
         else:
             self._validate_game()
 
-    def _validate_cloning(self) -> None:
-        if self.resolved_setting != CLONING_METHODS[self.method]:
-            raise RankGameError(
-                f"{self.method} learns only {_LEARNS[CLONING_METHODS[self.method]]}, not with --setting {self.setting}"
-            )
+    def _validate_own_trainer(self) -> None:
+        settings = OWN_TRAINER_METHODS[self.method].settings
+        if self.resolved_setting not in settings:
+            raise RankGameError(f"{self.method} learns only {_LEARNS[settings[0]]}, not with --setting {self.setting}")
         if unused := unused_settings(self):
             raise RankGameError(f"{unused[0]} is not used by {self.method}")
         try:
             self.cloning.validate()
+            self.iq.validate()
+            self.sac.validate()
         except ValueError as exc:
             raise RankGameError(f"bad setting: {exc}") from None
 
@@ -262,8 +266,8 @@ _BUDGET_OPTIONS: dict[str, tuple[str, ...]] = {
 }
 
 
-#: What the cloning methods read besides the run's own options.
-_CLONING_OPTIONS = (
+#: The run's own options, which every method reads.
+_RUN_OPTIONS = (
     "env",
     "method",
     "steps",
@@ -278,18 +282,18 @@ _CLONING_OPTIONS = (
     "resume",
     "tensorboard",
     "progress",
-    "cloning",
 )
 
 
 def unused_settings(config: TrainConfig) -> list[str]:
     """The ``--`` names of options set away from their defaults that no piece of ``config.method`` reads."""
     defaults = TrainConfig()
-    if config.method in CLONING_METHODS:
+    if config.method in OWN_TRAINER_METHODS:
+        reads = (*_RUN_OPTIONS, *OWN_TRAINER_METHODS[config.method].groups)
         names = [
             f.name
             for f in dataclasses.fields(TrainConfig)
-            if f.name not in _CLONING_OPTIONS and getattr(config, f.name) != getattr(defaults, f.name)
+            if f.name not in reads and getattr(config, f.name) != getattr(defaults, f.name)
         ]
         if "sac" in names and config.sac in SAC_PRESETS.values():
             names.remove("sac")
@@ -315,6 +319,8 @@ def unused_settings(config: TrainConfig) -> list[str]:
         names.append("ppo.*")
     if config.cloning != CloningConfig():
         names.append("cloning.*")
+    if config.iq != IQConfig():
+        names.append("iq.*")
     return ["--" + name.replace("_", "-") for name in names]
 
 

@@ -16,6 +16,7 @@ from typing import Any
 
 from rankgame.baselines.bco import BCO_LOG_COLUMNS, BCOTrainer
 from rankgame.baselines.cloning import BC_LOG_COLUMNS, BCTrainer
+from rankgame.baselines.iq import IQ_LOG_COLUMNS, IQTrainer
 from rankgame.config import TrainConfig, config_to_json
 from rankgame.data.trajectories import TrajectoryFile
 from rankgame.envs.make import EnvSpec, env_spec, make_env
@@ -41,7 +42,7 @@ def build_trainer(
     preferences: DataSource = None,
     switch_expert: DataSource = None,
 ) -> tuple[Trainer, tuple[str, ...]]:
-    """The trainer of ``config.method`` (the ranking game, or a cloning method's) and its log columns."""
+    """The trainer of ``config.method`` (the ranking game, or a method's own) and its log columns."""
     if config.method == "bc":
         data, _ = expert_data(config, expert)
         bc = BCTrainer(config.cloning, config.env, data, config.expert_trajectories, config.seed, config.eval_episodes)
@@ -50,6 +51,10 @@ def build_trainer(
         data, _ = expert_data(config, expert)
         args = (config.cloning, config.env, data, config.expert_trajectories, config.seed, config.eval_episodes)
         return BCOTrainer(*args, steps=config.steps), BCO_LOG_COLUMNS
+    if config.method == "iq-learn":
+        data, _ = expert_data(config, expert)
+        args = (config.env, data, config.expert_trajectories, config.seed, config.eval_episodes)
+        return IQTrainer(config.sac, config.iq, *args), IQ_LOG_COLUMNS
     game = build_game(config, expert, preferences, switch_expert)
     return game, game.log_columns
 

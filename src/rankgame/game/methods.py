@@ -32,7 +32,8 @@ discriminator game in LfD and LfO; the IMIT methods are their Stackelberg counte
 Sec. 3). Adding a method means adding a row to :data:`METHODS`, not another training loop.
 
 Behavior cloning plays no game: ``bc`` (LfD) and ``bco`` (LfO) are trainers of their own
-(:mod:`rankgame.baselines`), listed in :data:`CLONING_METHODS` with the setting they learn in.
+(:mod:`rankgame.baselines`), and so is IQ-Learn (``iq-learn``, LfD), whose critic is its reward model;
+they are listed in :data:`OWN_TRAINER_METHODS` with the settings they learn in.
 """
 
 from __future__ import annotations
@@ -86,8 +87,24 @@ METHODS: dict[str, Method] = {
 }
 
 
-#: The methods that play no game, with the one setting each learns in (:mod:`rankgame.baselines`).
-CLONING_METHODS: dict[str, Setting] = {"bc": "lfd", "bco": "lfo"}
+@dataclass(frozen=True)
+class OwnTrainer:
+    """A method that plays no ranking game but has a trainer of its own (:mod:`rankgame.baselines`): the
+    settings it learns in (the first is the default), the option groups it reads besides the run's own,
+    and its SAC preset (``--preset``'s default for it), if it has a SAC."""
+
+    settings: tuple[Setting, ...]
+    groups: tuple[str, ...]
+    sac_preset: str | None = None
+
+
+#: The methods with trainers of their own: behavior cloning (``bc``, ``bco``) and IQ-Learn, whose critic
+#: is its reward model (:mod:`rankgame.baselines.iq`).
+OWN_TRAINER_METHODS: dict[str, OwnTrainer] = {
+    "bc": OwnTrainer(("lfd",), ("cloning",)),
+    "bco": OwnTrainer(("lfo",), ("cloning",)),
+    "iq-learn": OwnTrainer(("lfd",), ("sac", "iq"), sac_preset="iq-learn"),
+}
 
 #: Every name ``--method`` accepts.
-ALL_METHODS: tuple[str, ...] = (*METHODS, *CLONING_METHODS)
+ALL_METHODS: tuple[str, ...] = (*METHODS, *OWN_TRAINER_METHODS)

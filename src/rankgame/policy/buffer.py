@@ -63,3 +63,23 @@ class ReplayBuffer:
             array[:size] = state[f"buffer/{name}"]
         self.size = size
         self.pos = int(state["buffer/pos"])
+
+
+def mix_demonstrations(
+    batches: dict[str, np.ndarray], demonstrations: dict[str, np.ndarray], rng: np.random.Generator
+) -> dict[str, np.ndarray]:
+    """Half agent, half expert batches: each of the ``n`` sampled agent batches ``(n, B, ...)`` gets ``B``
+    demonstration transitions drawn uniformly with replacement appended, and an ``is_expert`` field
+    ``(n, 2B)`` that is 0 on the agent rows and 1 on the expert rows (IQ-Learn's batches).
+
+    ``demonstrations`` holds arrays ``(N, ...)`` with the same fields as the batches (extra fields of the
+    batches are not allowed: the expert rows would have no value for them).
+    """
+    if batches.keys() != demonstrations.keys():
+        raise KeyError(f"demonstration fields {sorted(demonstrations)} != batch fields {sorted(batches)}")
+    n, batch_size = batches["obs"].shape[:2]
+    idx = rng.integers(0, len(demonstrations["obs"]), size=(n, batch_size))
+    mixed = {name: np.concatenate([batch, demonstrations[name][idx]], axis=1) for name, batch in batches.items()}
+    flags = np.concatenate([np.zeros(batch_size, np.float32), np.ones(batch_size, np.float32)])
+    mixed["is_expert"] = np.broadcast_to(flags, (n, 2 * batch_size)).copy()
+    return mixed

@@ -20,7 +20,8 @@ from rankgame.checkpoint import flatten_tree, unflatten_tree
 from rankgame.envs.make import env_spec
 from rankgame.envs.rollout import PolicyFn, to_env_action
 from rankgame.errors import NonFiniteError
-from rankgame.policy.buffer import ReplayBuffer
+from rankgame.policy.buffer import ReplayBuffer, mix_demonstrations
+from rankgame.policy.critic_objectives import CriticObjective, SoftBellman
 from rankgame.policy.sac import SAC, RewardFn, SACConfig, SACState, env_reward
 
 
@@ -50,6 +51,11 @@ class SACLearner:
             an absorbing flag, and a terminal step is stored as ``s -> s_abs`` followed by the
             self-loop ``s_abs -> s_abs``, neither with a terminal mask; SAC values ending an
             episode at exactly ``r(s_abs) / (1 - gamma)`` with the current learned reward.
+        critic_objective: what SAC's critic minimizes (default: the soft Bellman error,
+            :mod:`rankgame.policy.critic_objectives`).
+        demonstrations: expert transitions ``(N, ...)`` with the buffer's fields (``obs``, ``acts`` in the
+            normalized box, ``next_obs``, ``dones``); when given, every batch is half agent, half expert rows
+            (:func:`~rankgame.policy.buffer.mix_demonstrations`), as IQ-Learn trains.
 
     A non-finite action or observation, or a non-finite SAC loss, raises
     :class:`~rankgame.errors.NonFiniteError` before it reaches the environment or the buffer's users.
@@ -68,13 +74,17 @@ class SACLearner:
         reward_fn: RewardFn = env_reward,
         store_env_reward: bool = True,
         absorbing: bool = False,
+        critic_objective: CriticObjective | None = None,
+        demonstrations: dict[str, np.ndarray] | None = None,
     ) -> None:
         self.env = env
         self.spec = env_spec(env)
         self.config = config
         self.absorbing = absorbing
         sac_obs_dim = self.spec.obs_dim + int(absorbing)
-        self.sac = SAC(sac_obs_dim, self.spec.act_dim, config, reward_fn=reward_fn, absorbing=absorbing)
+        objective = critic_objective or SoftBellman()
+        self.sac = SAC(sac_obs_dim, self.spec.act_dim, config, reward_fn, absorbing, objective)
+        self.demonstrations = demonstrations
         self.state: SACState = self.sac.init(jax.random.key(seed))
         extras = ("rews",) if store_env_reward else ()
         self.buffer = ReplayBuffer(config.buffer_size, sac_obs_dim, self.spec.act_dim, extras=extras)
@@ -174,6 +184,8 @@ class SACLearner:
             return None
         self._updates_owed -= n_updates
         batches = self.buffer.sample(self.rng, n_updates, cfg.batch_size)
+        if self.demonstrations is not None:
+            batches = mix_demonstrations(batches, self.demonstrations, self.rng)
         self.state, metrics = self.sac.update(self.state, batches, reward_params)
         values = {key: float(value) for key, value in metrics.items()}
         for name in ("critic", "actor", "alpha"):

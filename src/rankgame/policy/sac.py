@@ -28,6 +28,7 @@ import optax
 from rankgame.absorbing import absorbing_flag, absorbing_obs
 from rankgame.errors import nonfinite_fields, require
 from rankgame.nets import MLP
+from rankgame.policy.critic_objectives import CriticObjective, SoftBellman
 
 Batch = dict[str, jax.Array]
 #: ``(reward_params, batch) -> rews`` of shape ``(batch_size,)``.
@@ -93,9 +94,21 @@ class SACConfig:
 
 #: Named presets. ``paper``: SpinningUp defaults used by the paper (App. C).
 #: ``modern``: the batch size, learning rate and learned temperature most JAX/PyTorch SACs use today.
+#: ``iq-learn``: the IQ-Learn authors' MuJoCo settings (their scripts' actor lr 3e-5, fixed temperature
+#: 0.01, 256 agent rows per batch, to which IQ-Learn adds 256 expert rows, no random warm-up), the
+#: default of ``--method iq-learn``.
 SAC_PRESETS: dict[str, SACConfig] = {
     "paper": SACConfig(),
     "modern": SACConfig(actor_lr=3e-4, critic_lr=3e-4, alpha_lr=3e-4, batch_size=256, init_alpha=1.0, learn_alpha=True),
+    "iq-learn": SACConfig(
+        actor_lr=3e-5,
+        critic_lr=3e-4,
+        alpha_lr=3e-4,
+        batch_size=256,
+        init_alpha=0.01,
+        start_steps=0,
+        update_after=1280,
+    ),
 }
 
 
@@ -192,6 +205,8 @@ class SAC:
             there is ever taken by the policy), which makes terminating look as good as surviving.
             The closed form has no entropy bonus: the policy makes no choice in ``s_abs``, just as
             plain SAC adds none after a terminal transition.
+        critic_objective: what the critic minimizes (:mod:`rankgame.policy.critic_objectives`): SAC's soft
+            Bellman error by default, IQ-Learn's inverse soft-Q objective for ``iq-learn``.
     """
 
     obs_dim: int
@@ -199,6 +214,7 @@ class SAC:
     config: SACConfig
     reward_fn: RewardFn = env_reward
     absorbing: bool = False
+    critic_objective: CriticObjective = field(default_factory=SoftBellman)
     actor: Actor = field(init=False)
     critic: TwinCritic = field(init=False)
 
@@ -247,29 +263,19 @@ class SAC:
         plus whatever ``reward_fn`` reads.
         """
         cfg = self.config
-        key, k_next, k_pi = jax.random.split(state.key, 3)
+        key, k_critic, k_pi = jax.random.split(state.key, 3)
         alpha = jnp.exp(state.log_alpha)
-        rews = self.reward_fn(reward_params, batch)
-
-        next_mean, next_log_std = self.actor.apply(state.actor_params, batch["next_obs"])
-        next_acts, next_logp = squashed_gaussian_sample(
-            next_mean, next_log_std, jax.random.normal(k_next, next_mean.shape)
-        )
-        next_q = jnp.min(self.critic.apply(state.target_critic_params, batch["next_obs"], next_acts), axis=0)
-        next_value = next_q - alpha * next_logp
+        objective = self.critic_objective
+        prepared = objective.prepare(self, state, batch, reward_params, k_critic, alpha)
         # Rows whose actor/temperature loss counts: all, or those not starting in s_abs.
-        live = jnp.ones_like(rews)
-        if self.absorbing:
-            into_absorbing = absorbing_flag(batch["next_obs"]) > 0.5
-            next_value = jnp.where(into_absorbing, self.absorbing_value(reward_params), next_value)
-            live = 1.0 - absorbing_flag(batch["obs"])
-        target = jax.lax.stop_gradient(rews + cfg.gamma * (1.0 - batch["dones"]) * next_value)
+        live = 1.0 - absorbing_flag(batch["obs"]) if self.absorbing else jnp.ones(batch["obs"].shape[0])
 
-        def critic_loss_fn(critic_params: Any) -> tuple[jax.Array, jax.Array]:
-            q = self.critic.apply(critic_params, batch["obs"], batch["acts"])
-            return jnp.sum(jnp.mean((q - target) ** 2, axis=1)), q
+        def critic_loss_fn(critic_params: Any) -> tuple[jax.Array, tuple[jax.Array, dict[str, jax.Array]]]:
+            return objective.loss(self, critic_params, batch, prepared)
 
-        (critic_loss, q), critic_grads = jax.value_and_grad(critic_loss_fn, has_aux=True)(state.critic_params)
+        (critic_loss, (q, critic_metrics)), critic_grads = jax.value_and_grad(critic_loss_fn, has_aux=True)(
+            state.critic_params
+        )
         critic_updates, critic_opt_state = self.critic_tx.update(critic_grads, state.critic_opt_state)
         critic_params = optax.apply_updates(state.critic_params, critic_updates)
 
@@ -310,7 +316,7 @@ class SAC:
             "losses/alpha": alpha,
             "losses/entropy": -_weighted_mean(logp, live),
             "losses/q": jnp.mean(q),
-            "losses/reward": jnp.mean(rews),
+            **critic_metrics,
         }
         return new_state, metrics
 
