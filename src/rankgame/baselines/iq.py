@@ -11,7 +11,8 @@ Settings follow the authors' MuJoCo scripts: the ``iq-learn`` SAC preset
 (:data:`~rankgame.policy.sac.SAC_PRESETS`: batches of 256 agent + 256 expert rows, actor lr 3e-5, critic
 lr 3e-4, fixed temperature 0.01, no random warm-up) and, per task, the ``v0`` or ``value`` form of the
 objective (:data:`AUTHORS_VARIANT`) with the chi-squared regularizer on. Episodes end at true
-terminations, as in the authors' code: no absorbing states.
+terminations, as in the authors' code: no absorbing states. ``rankgame export-reward`` writes the reward
+the critic implies (:mod:`rankgame.reward.export`, ``kind: soft-q``).
 """
 
 from __future__ import annotations
@@ -167,7 +168,24 @@ class IQTrainer:
 
     def checkpoint(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         metadata, arrays = self.learner.checkpoint()
-        return {**metadata, "iq_metrics": self.metrics}, arrays
+        return {**metadata, "iq_metrics": self.metrics, "reward_spec": self.reward_spec()}, arrays
+
+    def reward_spec(self) -> dict[str, Any]:
+        """What rebuilds the reward the critic implies outside the run (:mod:`rankgame.reward.export`)."""
+        spec, config = self.learner.spec, self.learner.config
+        return {
+            "kind": "soft-q",
+            "env_id": self.env_id,
+            "input": "sas",
+            "absorbing": False,
+            "obs_dim": spec.obs_dim,
+            "act_dim": spec.act_dim,
+            "act_low": spec.act_low.tolist(),
+            "act_high": spec.act_high.tolist(),
+            "hidden_sizes": list(config.hidden_sizes),
+            "gamma": config.gamma,
+            "alpha": float(np.exp(self.learner.state.log_alpha)),
+        }
 
     def restore(self, metadata: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
         self.learner.restore(metadata, arrays, seed=self.seed + int(metadata["env_steps"]))
