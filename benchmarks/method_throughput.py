@@ -4,8 +4,9 @@ Each method trains for ``--steps`` environment steps with its default settings (
 does, evaluations every ``--eval-every`` steps included) and is compared with the plain learner of its
 policy player on the environment reward, with the same settings, timed in the same process: SAC for
 the rank-game methods, DAC, DACfO and T-REX, PPO for GAIL and GAIfO. BCO, which acts with a cloned
-policy and fits only at round ends, is compared with SAC. The first ``--warmup`` steps (random
-actions, compilation) are excluded. BC takes no environment steps and is left out.
+policy and fits only at round ends, is compared with SAC, and so is IQ-Learn, which runs with its own
+SAC preset (``iq-learn``: batches of 256 agent and 256 expert rows). The first ``--warmup`` steps
+(random actions, compilation) are excluded. BC takes no environment steps and is left out.
 
     python benchmarks/method_throughput.py --env Hopper-v5 --steps 12000 \
         --methods rank-pal-auto dacfo gaifo bco --json
@@ -25,8 +26,9 @@ from game_overhead import time_game, time_learner, time_sac
 from rankgame.baselines.cloning import CloningConfig
 from rankgame.config import TrainConfig
 from rankgame.envs.make import make_env
-from rankgame.game.methods import METHODS
+from rankgame.game.methods import METHODS, OWN_TRAINER_METHODS
 from rankgame.policy.ppo_learner import PPOLearner
+from rankgame.policy.sac import sac_preset
 
 
 def time_ppo(cfg: TrainConfig, warmup: int) -> float:
@@ -62,6 +64,8 @@ def main() -> None:
             cfg = TrainConfig(env=args.env, method=method, steps=args.steps, eval_every=args.eval_every, out=Path(tmp))
             if method == "bco":  # time the rounds after the pre-demonstration phase
                 cfg = dataclasses.replace(cfg, cloning=CloningConfig(pre_steps=args.warmup))
+            if (own := OWN_TRAINER_METHODS.get(method)) is not None and own.sac_preset is not None:
+                cfg = dataclasses.replace(cfg, sac=sac_preset(own.sac_preset))
             rate = time_game(cfg, args.warmup)
             results.append(
                 {
