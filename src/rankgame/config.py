@@ -91,6 +91,7 @@ class TrainConfig:
         "dac",
         "dacfo",
         "trex",
+        "f-irl",
         "bc",
         "bco",
         "iq-learn",
@@ -257,6 +258,7 @@ _RANKINGS_OPTIONS: dict[str, tuple[str, ...]] = {
         "rankings.snippet_length",
     ),
     "offline": ("rankings.pref_noise", "rankings.snippet_length"),
+    "marginal": ("rankings.divergence", "rankings.ratio_steps"),
 }
 _BUDGET_OPTIONS: dict[str, tuple[str, ...]] = {
     "holdout": ("leader.holdout_fraction", "leader.patience", "leader.max_epochs"),

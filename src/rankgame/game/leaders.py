@@ -26,7 +26,8 @@ The older methods' non-Stackelberg choices (the paper's table of methods, Sec. 3
   (half of every sampled batch is agent inputs, half expert inputs).
 * ``gda-replay`` (DAC / DACfO): the same, with all agent data so far (the replay buffer) ranked below
   the expert; by default ``n_pol / 10`` steps per iteration, which at the default batch of 1024 draws
-  about as many discriminator samples per policy update as DAC's one batch of 100.
+  about as many discriminator samples per policy update as DAC's one batch of 100. f-IRL plays ``gda``
+  with one reward step per iteration of five horizons (its method row sets both).
 * ``reward-first`` (T-REX): the reward is fit once, for ``opening_steps`` gradient steps on the offline
   rankings, before the policy takes its first step, and then held fixed; it sees no agent data.
 """
@@ -103,6 +104,8 @@ class Leader:
         config: the budgets' settings.
         rows: which agent rows size the budgets: ``real`` states only, or ``all`` rows with the padding.
         policy_updates: policy updates per iteration, ``n_pol`` (sizes gda-replay's default budget).
+        method_steps: the fixed budget's steps per iteration when the method sets them (f-IRL's one
+            step, rounded up to a fused call) and ``gda_steps`` is not given.
     """
 
     keeps_history: bool
@@ -110,6 +113,7 @@ class Leader:
     config: LeaderConfig
     rows: BudgetRows = "real"
     policy_updates: int = 1000
+    method_steps: int | None = None
 
     @property
     def moves_first(self) -> bool:
@@ -143,14 +147,18 @@ class Leader:
         and the loss's own metrics. None for the reward-first leader, whose reward no longer moves."""
         if self.moves_first:
             return None
+        refreshed = player.rankings.refresh(rng)
         if self.budget == "holdout":
-            return self._fit_until_converged(player, state, rng)
+            state, metrics = self._fit_until_converged(player, state, rng)
+            return state, {**metrics, **refreshed}
         data = player.rankings.data
         rows = data.n_real_states if self.rows == "real" else len(data.train_rows)
         if self.budget == "passes":
             n_updates = max(1, math.ceil(self.config.ral_passes * rows / player.config.batch_size))
         elif self.config.gda_steps is not None:
             n_updates = self.config.gda_steps
+        elif self.method_steps is not None:
+            n_updates = self.method_steps
         elif self.keeps_history:
             n_updates = max(1, self.policy_updates // 10)
         else:  # half of each batch is agent inputs: 2 rows per pass
@@ -158,6 +166,7 @@ class Leader:
         state, train_loss, metrics = player.fit_steps(state, n_updates, rng)
         return state, {
             **metrics,
+            **refreshed,
             "reward/train_loss": train_loss,
             "reward/holdout_loss": player.holdout_loss(state.params, player.holdout_batch(data)),
             "reward/epochs": float("nan"),
@@ -219,8 +228,9 @@ def make_leader(
     budget: Budget | None = None,
     rows: BudgetRows = "real",
     policy_updates: int = 1000,
+    method_steps: int | None = None,
 ) -> Leader:
     """The leader ``name`` with ``config``; ``budget`` swaps in another budget (App. D's ablation swaps
-    PAL's and RAL's); ``policy_updates`` is ``n_pol``."""
+    PAL's and RAL's); ``policy_updates`` is ``n_pol``; ``method_steps`` the method's own fixed budget."""
     keeps_history, own_budget = LEADERS[name]
-    return Leader(keeps_history, budget or own_budget, config, rows, policy_updates)
+    return Leader(keeps_history, budget or own_budget, config, rows, policy_updates, method_steps)

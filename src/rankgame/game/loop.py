@@ -87,7 +87,8 @@ class RankingGame:
         """The command line recorded in saved policies."""
         spec = self.spec = env_spec(self.env)
         self.horizon = spec.max_episode_steps or max(len(t) for t in expert.trajectories)
-        self.n_pol = cfg.policy_updates or iteration_steps(self.method.policy, cfg, self.horizon)
+        own_length = None if self.method.iteration_horizons is None else self.method.iteration_horizons * self.horizon
+        self.n_pol = cfg.policy_updates or own_length or iteration_steps(self.method.policy, cfg, self.horizon)
         if cfg.steps < self.n_pol:
             raise RankGameError(
                 f"--steps {cfg.steps} is shorter than one game iteration ({self.n_pol} steps, the horizon or "
@@ -112,11 +113,17 @@ class RankingGame:
                 ranked,
                 cfg.ablation.mixup,
                 noise_seed=[cfg.seed, 2],
+                ratio_seed=cfg.seed,
             )
         except ValueError as exc:
             raise RankGameError(f"bad rankings setting: {exc}") from None
         self.leader = make_leader(
-            self.method.leader, cfg.leader, cfg.ablation.leader_budget, cfg.ablation.budget_rows, self.n_pol
+            self.method.leader,
+            cfg.leader,
+            cfg.ablation.leader_budget,
+            cfg.ablation.budget_rows,
+            self.n_pol,
+            self.method.reward_steps,
         )
         self.player = RewardPlayer(
             self.layout, loss, cfg.reward, self.rankings, columns, spectral_norm=cfg.ablation.spectral_norm
@@ -285,7 +292,7 @@ class RankingGame:
         arrays = {
             **learner_arrays,
             **flatten_tree("reward", self.reward_state),
-            **self.rankings.data.state_dict(),
+            **self.rankings.state_dict(),
             FINISHED_KEY: finished,
         }
         return metadata, arrays
@@ -295,7 +302,7 @@ class RankingGame:
             self.apply_switch()
         self.learner.restore(metadata, arrays, seed=self.cfg.seed + int(metadata["env_steps"]))
         self.reward_state = unflatten_tree("reward", arrays, self.reward_state)
-        self.rankings.data.load_state_dict(arrays)
+        self.rankings.load_state_dict(arrays)
         # A checkpoint inside an iteration (a run's last step, a signal) holds the episodes it had finished.
         self.finished = list(arrays[FINISHED_KEY])
         self.rng.bit_generator.state = metadata["game_rng"]

@@ -17,6 +17,7 @@ gaifo              vanilla    logistic       gda           ppo     lfo
 dac                vanilla    logistic-gp    gda-replay    sac     lfd
 dacfo              vanilla    logistic-gp    gda-replay    sac     lfo
 trex               offline    bradley-terry  reward-first  sac     lfo, lfd
+f-irl              marginal   f-divergence   gda           sac     lfo
 =================  =========  =============  ============  ======  =========
 
 GAIfO and DACfO read state transitions ``(s, s')`` from observations, as in their papers; every
@@ -25,11 +26,13 @@ other method reads ``s``, and ``(s, a)`` from demonstrations.
 Each column names an entry of one module: rankings in :mod:`rankgame.game.rankings` (``vanilla`` ranks
 the agent below the expert; ``auto`` adds the time-aligned mixtures between them, App. B.1; ``pref``
 adds a fixed chain of offline trajectories ranked below the expert, Eq. 6; ``offline`` is that chain
-alone, in pairs of snippets), losses in :data:`rankgame.reward.losses.LOSSES`, leaders in
+alone, in pairs of snippets; ``marginal`` compares state marginals through a density ratio, f-IRL's),
+losses in :data:`rankgame.reward.losses.LOSSES`, leaders in
 :mod:`rankgame.game.leaders`, policy players in :mod:`rankgame.policy` (SAC, PPO). GAIL and GAIfO
 (Ho & Ermon 2016; Torabi et al. 2018) and DAC and DACfO (Kostrikov et al. 2019) are the same
 discriminator game in LfD and LfO; the IMIT methods are their Stackelberg counterparts (the paper,
-Sec. 3). Adding a method means adding a row to :data:`METHODS`, not another training loop.
+Sec. 3); f-IRL (Ni et al. 2020) follows the gradient of an f-divergence between the state marginals.
+Adding a method means adding a row to :data:`METHODS`, not another training loop.
 
 Behavior cloning plays no game: ``bc`` (LfD) and ``bco`` (LfO) are trainers of their own
 (:mod:`rankgame.baselines`), and so is IQ-Learn (``iq-learn``, LfD), whose critic is its reward model;
@@ -45,7 +48,7 @@ from rankgame.game.leaders import LeaderName
 from rankgame.game.rankings import RankingSource
 from rankgame.reward.inputs import RewardInput
 
-LossName = Literal["regression", "supremum", "logistic", "logistic-gp", "bradley-terry"]
+LossName = Literal["regression", "supremum", "logistic", "logistic-gp", "bradley-terry", "f-divergence"]
 PolicyName = Literal["sac", "ppo"]
 Setting = Literal["lfo", "lfd"]
 
@@ -55,7 +58,9 @@ class Method:
     """Where rankings come from, which loss fits them, which player leads, who plays the policy, and
     whether the expert's actions may (``lfd``) or need not (``lfo``) be used (the first is the default);
     ``lfo_input`` is the reward's input from observations: ``s`` (the paper's ``r(s)``) or ``ss``, the
-    state transitions ``(s, s')`` of GAIfO and DACfO."""
+    state transitions ``(s, s')`` of GAIfO and DACfO. ``reward_steps`` is the reward's gradient steps per
+    iteration under a fixed-budget leader when the method sets them, and ``iteration_horizons`` an
+    iteration's length in horizons when it is not the policy player's (both f-IRL's: 1 and 5)."""
 
     rankings: RankingSource
     loss: LossName
@@ -63,6 +68,8 @@ class Method:
     policy: PolicyName = "sac"
     settings: tuple[Setting, ...] = ("lfo", "lfd")
     lfo_input: RewardInput = "s"
+    reward_steps: int | None = None
+    iteration_horizons: int | None = None
 
     @property
     def uses_preferences(self) -> bool:
@@ -84,6 +91,7 @@ METHODS: dict[str, Method] = {
     "dac": Method("vanilla", "logistic-gp", "gda-replay", "sac", ("lfd",)),
     "dacfo": Method("vanilla", "logistic-gp", "gda-replay", "sac", ("lfo",), lfo_input="ss"),
     "trex": Method("offline", "bradley-terry", "reward-first"),
+    "f-irl": Method("marginal", "f-divergence", "gda", "sac", ("lfo",), reward_steps=1, iteration_horizons=5),
 }
 
 

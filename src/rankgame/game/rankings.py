@@ -13,6 +13,8 @@
 * ``offline``: only the offline chain of a preference file, grounded by the expert on top, compared
   in pairs of snippets (T-REX, Brown et al. 2019); the agent's own data is never ranked, so the
   reward is learned before the policy moves (the ``reward-first`` leader). Needs a pairwise loss.
+* ``marginal``: f-IRL's comparison of the expert's and the agent's state marginals through an
+  estimated density ratio (:class:`MarginalRankings`). Needs a marginal loss.
 
 Every source can also give the points of a gradient penalty (losses that have one): random
 interpolations between agent and expert inputs (:meth:`RankingData.sample_interpolates`).
@@ -32,11 +34,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from rankgame.checkpoint import flatten_tree, unflatten_tree
 from rankgame.errors import nonfinite_fields, require
+from rankgame.reward.density_ratio import DensityRatio
 from rankgame.reward.inputs import InputLayout
 from rankgame.reward.losses import (
+    H_FUNCTIONS,
+    Divergence,
     Metrics,
     RankingLoss,
+    bound_reward,
     gradient_penalty,
     regression_ranking_loss,
     snippet_regression_loss,
@@ -46,7 +53,7 @@ from rankgame.reward.offline_rankings import OfflineRankings
 from rankgame.reward.ranking_data import RankingData
 from rankgame.reward.targets import Schedule, lambda_grid, target_schedule
 
-RankingSource = Literal["vanilla", "auto", "pref", "offline"]
+RankingSource = Literal["vanilla", "auto", "pref", "offline", "marginal"]
 Mixup = Literal["trajectory", "state"]
 
 #: Regression target of agent inputs, the bottom of every chain (the paper's 0).
@@ -74,6 +81,11 @@ class RankingsConfig:
     another offline trajectory (noisy preferences; pref rankings)."""
     snippet_length: int = 10
     """Steps per snippet of an offline trajectory whose summed reward is regressed to k_i l (pref)."""
+    divergence: Divergence = "fkl"
+    """f-divergence between the state marginals whose gradient the reward follows: forward KL, reverse
+    KL or Jensen-Shannon (marginal rankings: f-irl)."""
+    ratio_steps: int = 1200
+    """Density-ratio classifier steps before each reward turn (marginal rankings: f-irl)."""
 
     def validate(self, source: RankingSource) -> None:
         """Raise ``ValueError`` with a one-line reason for settings that make no sense for ``source``."""
@@ -85,6 +97,7 @@ class RankingsConfig:
                 (0.0 <= self.pref_weight <= 1.0, "rankings pref_weight must lie in [0, 1]"),
                 (0.0 <= self.pref_noise <= 1.0, f"rankings pref_noise must lie in [0, 1] (got {self.pref_noise})"),
                 (self.snippet_length > 0, "rankings snippet_length must be positive"),
+                (self.ratio_steps > 0, "rankings ratio_steps must be positive"),
                 (
                     self.pref_noise == 0.0 or source in ("pref", "offline"),
                     "rankings pref_noise is used only by the pref and offline rankings",
@@ -130,6 +143,18 @@ class Rankings:
         points = self.data.sample_interpolates(rng, n_batches, batch_size) if self.penalty_points else None
         return inputs, targets, is_expert, offline, points
 
+    def refresh(self, rng: np.random.Generator) -> dict[str, float]:
+        """Nothing to re-estimate before a reward turn (see :meth:`MarginalRankings.refresh`)."""
+        return {}
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Arrays that restore the rankings' changing state (the agent data)."""
+        return self.data.state_dict()
+
+    def load_state_dict(self, arrays: dict[str, np.ndarray]) -> None:
+        """Inverse of :meth:`state_dict`."""
+        self.data.load_state_dict(arrays)
+
     def objective(self, raw_fn: RawRewardFn, loss: RankingLoss, r_max: float, penalty: float = 0.0) -> Objective:
         """The loss of one batch: ``loss`` on the agent-vs-expert chain, with offline rankings Eq. 6, and
         with ``penalty_points`` plus ``penalty`` times the gradient penalty."""
@@ -170,6 +195,18 @@ class PairwiseRankings:
         """Better and worse snippets ``(n, S, l, d)`` each (:meth:`OfflineRankings.sample_pairs`)."""
         return self.offline.sample_pairs(rng, n_batches, max(1, batch_size // (2 * self.snippet_length)))
 
+    def refresh(self, rng: np.random.Generator) -> dict[str, float]:
+        """Nothing to re-estimate before a reward turn (see :meth:`MarginalRankings.refresh`)."""
+        return {}
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Arrays that restore the rankings' changing state (the agent data)."""
+        return self.data.state_dict()
+
+    def load_state_dict(self, arrays: dict[str, np.ndarray]) -> None:
+        """Inverse of :meth:`state_dict`."""
+        self.data.load_state_dict(arrays)
+
     def objective(self, raw_fn: RawRewardFn, loss: RankingLoss, r_max: float, penalty: float = 0.0) -> Objective:
         """``loss`` on the summed raw rewards ``(S,)`` of the better and the worse snippets."""
 
@@ -178,6 +215,99 @@ class PairwiseRankings:
             return loss.fn(jnp.sum(raw_fn(params, better), -1), jnp.sum(raw_fn(params, worse), -1))  # type: ignore[call-arg]
 
         return objective
+
+
+@dataclass
+class MarginalRankings:
+    """The ``marginal`` rankings of f-IRL (Ni et al. 2020): the expert's state marginal against the
+    agent's, compared through an estimated density ratio.
+
+    Before each reward turn (:meth:`refresh`) the classifier of :class:`~rankgame.reward.density_ratio.
+    DensityRatio` is fit for ``ratio_steps`` steps on every expert input against every agent input of the
+    iteration (padding included: an absorbing state is one the expert never visits), and each trajectory
+    gets its summed ``h_f`` of the estimated log ratio. A batch holds every agent trajectory of the
+    iteration and ``expert_trajectories`` expert trajectories drawn with replacement, as the f-IRL
+    authors' covariance sample does; the objective is :func:`~rankgame.reward.losses.f_divergence_surrogate`.
+
+    Attributes:
+        data: the iteration's agent trajectories and the expert's (no holdout).
+        ratio: the density-ratio classifier.
+        divergence: which ``h_f`` (:data:`~rankgame.reward.losses.H_FUNCTIONS`).
+        ratio_steps: classifier steps per reward turn.
+        expert_trajectories: expert trajectories in each batch.
+        seed: seeds the classifier's parameters.
+    """
+
+    data: RankingData
+    ratio: DensityRatio
+    divergence: Divergence
+    ratio_steps: int
+    expert_trajectories: int = 10
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        self.ratio_state = self.ratio.init(jax.random.key(self.seed))
+        self.ratio_loss = float("nan")
+        """The classifier's mean loss in its last fit."""
+        self._h_agent = np.zeros(0, np.float32)
+        self._h_expert = np.zeros(0, np.float32)
+
+    def refresh(self, rng: np.random.Generator) -> dict[str, float]:
+        """Fit the classifier on the current data and sum ``h_f`` of its log ratio along every trajectory;
+        ``{"reward/ratio_loss": the classifier's mean loss}``."""
+        expert, agent = self.data.expert, self.data.agent
+        if len(agent) == 0:
+            raise ValueError("the marginal rankings have no agent trajectory to compare with the expert")
+        dim = expert.shape[-1]
+        self.ratio_state, self.ratio_loss = self.ratio.fit(
+            self.ratio_state, expert.reshape(-1, dim), agent.reshape(-1, dim), rng, self.ratio_steps
+        )
+        h = H_FUNCTIONS[self.divergence]
+        self._h_agent = np.asarray(jnp.sum(h(self.ratio.log_ratio(self.ratio_state.params, agent)), axis=-1))
+        self._h_expert = np.asarray(jnp.sum(h(self.ratio.log_ratio(self.ratio_state.params, expert)), axis=-1))
+        return {"reward/ratio_loss": self.ratio_loss}
+
+    def sample(self, rng: np.random.Generator, n_batches: int, batch_size: int) -> tuple[Any, ...]:
+        """``n_batches`` copies of the agent trajectories with fresh draws of expert trajectories: inputs
+        ``(n, N, H, d)``, summed ``h_f`` ``(n, N)`` and weights ``(n, N)`` (0 on padding to a power of two)."""
+        if len(self._h_agent) != len(self.data.agent):
+            raise ValueError("the marginal rankings were not refreshed since agent data was added")
+        draws = rng.integers(0, len(self.data.expert), size=(n_batches, self.expert_trajectories))
+        n_agent = len(self.data.agent)
+        size = 1 << (n_agent + self.expert_trajectories - 1).bit_length()
+        horizon, dim = self.data.horizon, self.data.dim
+        inputs = np.zeros((n_batches, size, horizon, dim), np.float32)
+        h_sums = np.zeros((n_batches, size), np.float32)
+        weights = np.zeros((n_batches, size), np.float32)
+        inputs[:, :n_agent] = self.data.agent
+        h_sums[:, :n_agent] = self._h_agent
+        end = n_agent + self.expert_trajectories
+        inputs[:, n_agent:end] = self.data.expert[draws]
+        h_sums[:, n_agent:end] = self._h_expert[draws]
+        weights[:, :end] = 1.0
+        return inputs, h_sums, weights
+
+    def objective(self, raw_fn: RawRewardFn, loss: RankingLoss, r_max: float, penalty: float = 0.0) -> Objective:
+        """``loss`` on the trajectories' summed bounded rewards ``(N,)`` and summed ``h_f``. The covariance
+        is unbounded below in the rewards, so it acts on the reward the policy sees (clipped to
+        ``[-r_max, r_max]``, as the f-IRL authors clamp theirs), whose gradient stops at the bound."""
+        horizon = self.data.horizon
+
+        def objective(params: Any, batch: tuple[Any, ...]) -> tuple[jax.Array, Metrics]:
+            inputs, h_sums, weights = batch
+            rewards = bound_reward(raw_fn(params, inputs), r_max, loss.bound)
+            return loss.fn(jnp.sum(rewards, -1), h_sums, weights, horizon)  # type: ignore[call-arg]
+
+        return objective
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """The agent data and the classifier."""
+        return {**self.data.state_dict(), **flatten_tree("ratio", self.ratio_state)}
+
+    def load_state_dict(self, arrays: dict[str, np.ndarray]) -> None:
+        """Inverse of :meth:`state_dict`."""
+        self.data.load_state_dict(arrays)
+        self.ratio_state = unflatten_tree("ratio", arrays, self.ratio_state)
 
 
 def build_rankings(
@@ -190,7 +320,8 @@ def build_rankings(
     preferences: np.ndarray | None = None,
     mixup: Mixup = "trajectory",
     noise_seed: int | Sequence[int] = 0,
-) -> Rankings | PairwiseRankings:
+    ratio_seed: int = 0,
+) -> Rankings | PairwiseRankings | MarginalRankings:
     """The rankings of ``source``.
 
     Args:
@@ -206,6 +337,7 @@ def build_rankings(
         mixup: how the auto mixtures pair agent and expert states: ``trajectory`` (time-aligned, the
             paper's) or ``state`` (an expert state from a random time step, App. D's regularizer ablation).
         noise_seed: seed of the preference noise (pref only).
+        ratio_seed: seed of the density-ratio classifier's parameters (marginal only).
     Raises:
         ValueError: a one-line reason for a combination that makes no sense.
     """
@@ -216,6 +348,12 @@ def build_rankings(
         raise ValueError(f"{source} rankings {'need' if preferences is None else 'use no'} preference data")
     if loss.pairwise != (source == "offline"):
         raise ValueError("offline rankings need a pairwise loss, and only they use one")
+    if loss.marginal != (source == "marginal"):
+        raise ValueError("marginal rankings need a marginal loss, and only they use one")
+    if source == "marginal":
+        data = RankingData(expert, np.array([0.0, 1.0]), config.targets(np.array([0.0, 1.0])), 0.0, layout)
+        ratio = DensityRatio(expert.shape[-1])
+        return MarginalRankings(data, ratio, config.divergence, config.ratio_steps, seed=ratio_seed)
     lambdas = lambda_grid(config.interpolations) if source == "auto" else np.array([0.0, 1.0])
     data = RankingData(
         expert, lambdas, config.targets(lambdas), holdout_fraction, layout, time_aligned=mixup == "trajectory"

@@ -22,6 +22,9 @@ declares how the reward handed to the policy is bounded to ``[-r_max, r_max]``:
   of agent and expert inputs (:func:`gradient_penalty`). The policy is paid DAC's
   ``log D - log(1 - D) = x``, clipped to ``[-r_max, r_max]``; with absorbing states the sign of this
   reward is no bias (Kostrikov et al., Sec. 4.2).
+* ``f-divergence``: f-IRL's reward objective (Ni et al. 2020), the covariance over trajectories of the
+  summed rewards with the summed ``h_f`` of an estimated density ratio (:func:`f_divergence_surrogate`),
+  for the marginal rankings (:mod:`rankgame.game.rankings`). The policy sees the clipped reward.
 * ``bradley-terry``: T-REX's loss on pairs of snippets of ranked trajectories (Brown et al. 2019), the
   Luce-Shepard choice probability ``P(b > w) = exp R_b / (exp R_b + exp R_w)`` of the summed rewards
   of the better and the worse snippet (:func:`bradley_terry_loss`); a pairwise loss, used by the
@@ -164,6 +167,42 @@ def bradley_terry_loss(better: jax.Array, worse: jax.Array) -> tuple[jax.Array, 
     return loss, {"accuracy": jnp.mean((better > worse).astype(better.dtype))}
 
 
+Divergence = Literal["fkl", "rkl", "js"]
+
+#: f-IRL's ``h_f`` of each divergence as a function of the log density ratio ``l = log rho_E / rho_pi``,
+#: up to an additive constant (which the covariance of :func:`f_divergence_surrogate` cancels): forward KL
+#: ``-rho_E / rho_pi``, reverse KL ``-l``, Jensen-Shannon ``-log(1 + rho_E / rho_pi)`` (Ni et al. 2020, Table 1).
+H_FUNCTIONS: dict[str, Callable[[jax.Array], jax.Array]] = {
+    "fkl": lambda log_ratio: -jnp.exp(log_ratio),
+    "rkl": lambda log_ratio: -log_ratio,
+    "js": lambda log_ratio: -jax.nn.softplus(log_ratio),
+}
+
+
+def f_divergence_surrogate(
+    reward_sums: jax.Array, h_sums: jax.Array, weights: jax.Array, horizon: int
+) -> tuple[jax.Array, Metrics]:
+    """f-IRL's reward objective (Ni et al. 2020, Thm. 4.1): a loss whose gradient is that of the
+    f-divergence between the expert's and the agent's state marginals with respect to the reward,
+    ``(1 / T) Cov_tau(sum_t h_f(s_t), sum_t grad r(s_t))``.
+
+    Args:
+        reward_sums: ``(N,)`` summed rewards ``sum_t r(s_t)`` of N trajectories of length ``T``.
+        h_sums: ``(N,)`` their summed ``h_f(log rho_E(s_t) / rho_pi(s_t))`` (held fixed).
+        weights: ``(N,)`` 1 for a trajectory, 0 for padding.
+        horizon: ``T``.
+    Returns:
+        the weighted sample covariance ``(mean(A B) - mean(A) mean(B)) / T`` of ``A = h_sums`` and
+        ``B = reward_sums``, and ``{"h_spread": std of A / T}``.
+    """
+    n = jnp.maximum(jnp.sum(weights), 1.0)
+    mean_h = jnp.sum(weights * h_sums) / n
+    mean_r = jnp.sum(weights * reward_sums) / n
+    loss = (jnp.sum(weights * h_sums * reward_sums) / n - mean_h * mean_r) / horizon
+    spread = jnp.sqrt(jnp.sum(weights * (h_sums - mean_h) ** 2) / n) / horizon
+    return loss, {"h_spread": spread}
+
+
 def weighted_sum(terms: Sequence[tuple[float, tuple[jax.Array, Metrics]]]) -> tuple[jax.Array, Metrics]:
     """``sum_i w_i loss_i`` with each term's metrics kept under ``term{i}/``."""
     total = jnp.zeros(())
@@ -188,6 +227,8 @@ class RankingLoss:
             weighted by ``--reward.gradient-penalty``.
         pairwise: a loss on pairs of snippets, ``fn(better (S,), worse (S,))`` (see
             :func:`bradley_terry_loss`), for the pairwise rankings; else a loss on one batch of inputs.
+        marginal: a loss on whole trajectories against density-ratio estimates (see
+            :func:`f_divergence_surrogate`), for the marginal rankings.
         log_columns: the metrics of this loss that ``metrics.csv`` gets a column for (all of them reach
             TensorBoard).
     """
@@ -197,6 +238,7 @@ class RankingLoss:
     regresses_targets: bool
     gradient_penalty: bool = False
     pairwise: bool = False
+    marginal: bool = False
     log_columns: tuple[str, ...] = ()
 
     def __call__(
@@ -245,5 +287,12 @@ LOSSES: dict[str, RankingLoss] = {
         regresses_targets=False,
         pairwise=True,
         log_columns=("reward/accuracy",),
+    ),
+    "f-divergence": RankingLoss(
+        f_divergence_surrogate,  # type: ignore[arg-type]
+        "clip",
+        regresses_targets=False,
+        marginal=True,
+        log_columns=("reward/ratio_loss",),
     ),
 }
