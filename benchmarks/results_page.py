@@ -10,11 +10,13 @@ page labels each group with its archive folder, so what was tuned and what was h
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 from rankgame.report import write_report
 
-ROOT = Path(__file__).resolve().parent / "results"
+REPO = Path(__file__).resolve().parents[1]
+ROOT = Path("benchmarks") / "results"  # relative to REPO, so that the page names runs by repository paths
 
 #: Archive folders of the results page, in the order they are read.
 ARCHIVES = (
@@ -26,11 +28,13 @@ ARCHIVES = (
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "docs")
+    parser.add_argument("--out", type=Path, default=REPO / "docs")
     parser.add_argument("--boot", type=int, default=2000)
     args = parser.parse_args()
+    out = args.out.resolve()
+    os.chdir(REPO)
     archives = [ROOT / name for name in ARCHIVES if (ROOT / name).is_dir()]
-    print(write_report(archives, args.out, n_boot=args.boot))
+    print(write_report(archives, out, n_boot=args.boot))
 
 
 if __name__ == "__main__":
