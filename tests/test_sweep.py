@@ -3,6 +3,7 @@ death of its workers and a resume of the driver."""
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import os
@@ -116,19 +117,36 @@ def test_bad_grids_are_one_line_errors_and_start_nothing(
     assert not (tmp_path / "sweep").exists()
 
 
-def _trial_workers() -> list[int]:
-    """PIDs of the Ray worker processes that run a trial."""
+def _session(pid: int) -> int:
+    """The session id of process ``pid`` (-1 when it is gone)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return -1
+    return int(stat.rsplit(")", 1)[1].split()[3])  # after "pid (comm)": state, ppid, pgrp, session
+
+
+def _session_processes(session: int, prefix: bytes = b"") -> list[int]:
+    """PIDs of the processes of ``session`` whose command line starts with ``prefix``: those of the sweep
+    this test started in its own session (its driver, and the Ray instance and workers the driver
+    started), never those of another sweep running on the same machine."""
     pids = []
     for proc in Path("/proc").iterdir():
-        if not proc.name.isdigit():
+        if not proc.name.isdigit() or _session(int(proc.name)) != session:
             continue
         try:
             cmdline = (proc / "cmdline").read_bytes()
         except OSError:
             continue
-        if cmdline.startswith(b"ray::ImplicitFunc"):
+        if cmdline.startswith(prefix):
             pids.append(int(proc.name))
     return pids
+
+
+def _kill_all(pids: list[int]) -> None:
+    for pid in pids:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
 
 
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="finds Ray's worker processes through /proc")
@@ -144,15 +162,13 @@ def test_a_local_ray_sweep_survives_killed_workers_and_a_killed_driver(toy_exper
     deadline = time.time() + 300
     while time.time() < deadline and not list(out.glob("*/checkpoint.npz")):
         time.sleep(0.5)
-    killed = _trial_workers()
+    killed = _session_processes(driver.pid, b"ray::ImplicitFunc")
     assert killed, "no trial was running"
-    for pid in killed:  # the workers die: Ray restarts their trials, which resume from their checkpoints
-        os.kill(pid, signal.SIGKILL)
+    _kill_all(killed)  # the workers die: Ray restarts their trials, which resume from their checkpoints
     while time.time() < deadline and len([p for p in out.glob("*/metrics.csv") if len(_rows(p.parent)) >= 1]) < 3:
         time.sleep(0.5)
-    os.killpg(driver.pid, signal.SIGKILL)  # then the driver dies too
+    _kill_all(_session_processes(driver.pid))  # then the driver dies too, with its Ray instance
     driver.wait()
-    subprocess.run([str(Path(sys.executable).parent / "ray"), "stop", "--force"], capture_output=True, check=False)
     resumed = subprocess.run([*argv, "--resume"], capture_output=True, text=True, timeout=600)
     assert resumed.returncode == 0, resumed.stdout[-3000:] + resumed.stderr[-3000:]
     summary = json.loads(resumed.stdout[resumed.stdout.rindex("{\n") :])
