@@ -17,6 +17,10 @@ from rankgame.data.experts import normalized_score
 from rankgame.data.trajectories import TrajectoryFile
 from rankgame.envs.rollout import PolicyFn, episode_returns, evaluate_episodes, random_policy, success_postfix
 
+#: The first columns of every ``rankgame train`` run's ``metrics.csv``: the harness's step count and
+#: clock, then the evaluation row of :meth:`ScoreScale.evaluate`.
+EVAL_COLUMNS = ("env_steps", "wall_s", "steps_per_s", "eval_return", "normalized_score", "eval_success")
+
 #: Episodes of the random policy when the expert file records no random return.
 RANDOM_EPISODES = 20
 

@@ -34,15 +34,11 @@ from rankgame.data.trajectories import Trajectory, TrajectoryFile
 from rankgame.envs.make import make_env
 from rankgame.envs.rollout import to_env_action
 from rankgame.errors import NonFiniteError, RankGameError
+from rankgame.scores import EVAL_COLUMNS
 
 #: Columns of a BCO run's ``metrics.csv`` (``env_steps``: environment steps of interaction).
 BCO_LOG_COLUMNS = (
-    "env_steps",
-    "wall_s",
-    "steps_per_s",
-    "eval_return",
-    "normalized_score",
-    "eval_success",
+    *EVAL_COLUMNS,
     "losses/bc",
     "losses/inverse",
     "grad_steps",

@@ -45,7 +45,7 @@ from rankgame.errors import NonFiniteError, RankGameError, nonfinite_fields, req
 from rankgame.policy.io import save_policy
 from rankgame.policy.learner import make_policy_fn
 from rankgame.policy.sac import SAC, SACConfig
-from rankgame.scores import ScoreScale, score_postfix
+from rankgame.scores import EVAL_COLUMNS, ScoreScale, score_postfix
 
 #: ``|a|`` of a normalized action is clipped to at most this before ``atanh`` in :func:`tanh_gaussian_nll`.
 #: Expert actions often sit exactly on the bounds (a saturated controller, or a tanh policy rounded to
@@ -333,12 +333,7 @@ def expert_trajectories(
 
 #: Columns of a BC run's ``metrics.csv`` (``env_steps`` is the harness's step: a gradient step for BC).
 BC_LOG_COLUMNS = (
-    "env_steps",
-    "wall_s",
-    "steps_per_s",
-    "eval_return",
-    "normalized_score",
-    "eval_success",
+    *EVAL_COLUMNS,
     "losses/bc",
     "grad_steps",
 )

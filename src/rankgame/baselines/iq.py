@@ -25,13 +25,13 @@ import numpy as np
 
 from rankgame.baselines.cloning import expert_state_actions, expert_trajectories
 from rankgame.data.trajectories import Trajectory, TrajectoryFile
-from rankgame.envs.make import make_env
+from rankgame.envs.make import EnvSpec, env_spec, make_env
 from rankgame.envs.rollout import EVAL_SEED_OFFSET
 from rankgame.errors import nonfinite_fields, require
 from rankgame.policy.critic_objectives import InverseSoftQ
 from rankgame.policy.learner import SACLearner
 from rankgame.policy.sac import SACConfig
-from rankgame.scores import ScoreScale, score_postfix
+from rankgame.scores import EVAL_COLUMNS, ScoreScale, score_postfix
 
 #: The objective's form in the authors' MuJoCo scripts, by task family; every other task gets ``v0``.
 AUTHORS_VARIANT: dict[str, Literal["v0", "value"]] = {"HalfCheetah": "value", "Ant": "value"}
@@ -41,12 +41,7 @@ POLICY_NAME = "policy.msgpack"
 
 #: Columns of an IQ-Learn run's ``metrics.csv``.
 IQ_LOG_COLUMNS = (
-    "env_steps",
-    "wall_s",
-    "steps_per_s",
-    "eval_return",
-    "normalized_score",
-    "eval_success",
+    *EVAL_COLUMNS,
     "losses/critic",
     "losses/actor",
     "losses/alpha",
@@ -84,14 +79,14 @@ class IQConfig:
         return InverseSoftQ(variant, self.chi2_weight)
 
 
-def demonstration_transitions(trajectories: tuple[Trajectory, ...], learner: SACLearner) -> dict[str, np.ndarray]:
+def demonstration_transitions(trajectories: tuple[Trajectory, ...], spec: EnvSpec) -> dict[str, np.ndarray]:
     """The expert's transitions as SAC batch fields, ``(N, ...)`` with ``N = sum T_i``: ``obs``, ``acts`` (in
     the normalized box), ``next_obs`` and ``dones`` (1 on a trajectory's last step if it terminated).
 
     Raises:
         RankGameError: the data has no usable actions (:func:`~rankgame.baselines.cloning.expert_state_actions`).
     """
-    obs, acts = expert_state_actions(trajectories, learner.spec)
+    obs, acts = expert_state_actions(trajectories, spec)
     next_obs = np.concatenate([t.obs[1:] for t in trajectories]).astype(np.float32)
     dones = np.concatenate([t.terminated for t in trajectories]).astype(np.float32)
     return {"obs": obs, "acts": acts, "next_obs": next_obs, "dones": dones}
@@ -128,10 +123,16 @@ class IQTrainer:
         self.command = ""
         """The command line recorded in saved policies."""
         self.eval_env = make_env(env_id)
-        env = make_env(env_id)
-        self.learner = SACLearner(env, sac, seed, store_env_reward=False, critic_objective=config.objective(env_id))
-        self.learner.demonstrations = demonstration_transitions(
-            expert_trajectories(expert, n_expert, self.learner.spec), self.learner
+        spec = env_spec(self.eval_env)
+        demonstrations = demonstration_transitions(expert_trajectories(expert, n_expert, spec), spec)
+        objective = config.objective(env_id)
+        self.learner = SACLearner(
+            make_env(env_id),
+            sac,
+            seed,
+            store_env_reward=False,
+            critic_objective=objective,
+            demonstrations=demonstrations,
         )
         self.scale = ScoreScale.of(expert, self.eval_env, seed)
         self.metrics: dict[str, float] = {}

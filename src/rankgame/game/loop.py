@@ -34,7 +34,7 @@ from rankgame.policy.players import iteration_steps, make_policy_player
 from rankgame.reward.inputs import InputLayout, parse_obs_columns
 from rankgame.reward.losses import LOSSES
 from rankgame.reward.player import RewardPlayer
-from rankgame.scores import ScoreScale, score_postfix
+from rankgame.scores import EVAL_COLUMNS, ScoreScale, score_postfix
 
 #: Checkpoint array of the episodes finished in the iteration in progress.
 FINISHED_KEY = "game/finished"
@@ -43,12 +43,7 @@ FINISHED_KEY = "game/finished"
 POLICY_NAME = "policy.msgpack"
 
 LOG_COLUMNS = (
-    "env_steps",
-    "wall_s",
-    "steps_per_s",
-    "eval_return",
-    "normalized_score",
-    "eval_success",
+    *EVAL_COLUMNS,
     "reward/train_loss",
     "reward/holdout_loss",
     "reward/agent",

@@ -116,8 +116,27 @@ RawRewardFn = Callable[[Any, jax.Array], jax.Array]
 Objective = Callable[[Any, tuple[Any, ...]], tuple[jax.Array, Metrics]]
 
 
+class _StoredInData:
+    """Rankings whose only changing state is their ranking data ``self.data`` and that re-estimate
+    nothing before a reward turn (every source but ``marginal``)."""
+
+    data: RankingData
+
+    def refresh(self, rng: np.random.Generator) -> dict[str, float]:
+        """Nothing to re-estimate before a reward turn (see :meth:`MarginalRankings.refresh`)."""
+        return {}
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Arrays that restore the rankings' changing state (the agent data)."""
+        return self.data.state_dict()
+
+    def load_state_dict(self, arrays: dict[str, np.ndarray]) -> None:
+        """Inverse of :meth:`state_dict`."""
+        self.data.load_state_dict(arrays)
+
+
 @dataclass
-class Rankings:
+class Rankings(_StoredInData):
     """What the reward player fits.
 
     Attributes:
@@ -143,18 +162,6 @@ class Rankings:
         points = self.data.sample_interpolates(rng, n_batches, batch_size) if self.penalty_points else None
         return inputs, targets, is_expert, offline, points
 
-    def refresh(self, rng: np.random.Generator) -> dict[str, float]:
-        """Nothing to re-estimate before a reward turn (see :meth:`MarginalRankings.refresh`)."""
-        return {}
-
-    def state_dict(self) -> dict[str, np.ndarray]:
-        """Arrays that restore the rankings' changing state (the agent data)."""
-        return self.data.state_dict()
-
-    def load_state_dict(self, arrays: dict[str, np.ndarray]) -> None:
-        """Inverse of :meth:`state_dict`."""
-        self.data.load_state_dict(arrays)
-
     def objective(self, raw_fn: RawRewardFn, loss: RankingLoss, r_max: float, penalty: float = 0.0) -> Objective:
         """The loss of one batch: ``loss`` on the agent-vs-expert chain, with offline rankings Eq. 6, and
         with ``penalty_points`` plus ``penalty`` times the gradient penalty."""
@@ -177,7 +184,7 @@ class Rankings:
 
 
 @dataclass
-class PairwiseRankings:
+class PairwiseRankings(_StoredInData):
     """The ``offline`` rankings: pairs of snippets of a fixed ranked chain, for a pairwise loss (T-REX).
 
     Attributes:
@@ -194,18 +201,6 @@ class PairwiseRankings:
     def sample(self, rng: np.random.Generator, n_batches: int, batch_size: int) -> tuple[Any, ...]:
         """Better and worse snippets ``(n, S, l, d)`` each (:meth:`OfflineRankings.sample_pairs`)."""
         return self.offline.sample_pairs(rng, n_batches, max(1, batch_size // (2 * self.snippet_length)))
-
-    def refresh(self, rng: np.random.Generator) -> dict[str, float]:
-        """Nothing to re-estimate before a reward turn (see :meth:`MarginalRankings.refresh`)."""
-        return {}
-
-    def state_dict(self) -> dict[str, np.ndarray]:
-        """Arrays that restore the rankings' changing state (the agent data)."""
-        return self.data.state_dict()
-
-    def load_state_dict(self, arrays: dict[str, np.ndarray]) -> None:
-        """Inverse of :meth:`state_dict`."""
-        self.data.load_state_dict(arrays)
 
     def objective(self, raw_fn: RawRewardFn, loss: RankingLoss, r_max: float, penalty: float = 0.0) -> Objective:
         """``loss`` on the summed raw rewards ``(S,)`` of the better and the worse snippets."""
