@@ -24,8 +24,10 @@ from rankgame.game.leaders import LEADERS, Budget, BudgetRows, LeaderConfig
 from rankgame.game.methods import ALL_METHODS, METHODS, OWN_TRAINER_METHODS
 from rankgame.game.rankings import Mixup, RankingsConfig
 from rankgame.game.recipes import setting_value
+from rankgame.policy.opolo import OPOLOConfig
 from rankgame.policy.ppo import PPOConfig
 from rankgame.policy.sac import SAC_PRESETS, SACConfig
+from rankgame.policy.td3 import TD3Config
 from rankgame.reward.inputs import RewardInput
 from rankgame.reward.losses import LOSSES
 from rankgame.reward.player import RewardConfig
@@ -92,6 +94,7 @@ class TrainConfig:
         "dacfo",
         "trex",
         "f-irl",
+        "opolo",
         "bc",
         "bco",
         "iq-learn",
@@ -137,6 +140,8 @@ class TrainConfig:
     leader: LeaderConfig = field(default_factory=LeaderConfig)
     sac: SACConfig = field(default_factory=SACConfig)
     ppo: PPOConfig = field(default_factory=PPOConfig)
+    td3: TD3Config = field(default_factory=TD3Config)
+    opolo: OPOLOConfig = field(default_factory=OPOLOConfig)
     cloning: CloningConfig = field(default_factory=CloningConfig)
     iq: IQConfig = field(default_factory=IQConfig)
     switch: SwitchConfig = field(default_factory=SwitchConfig)
@@ -210,6 +215,10 @@ class TrainConfig:
             raise RankGameError(f"--switch.at must lie between 0 and --steps {self.steps} (got {switch.at})")
         if switch.expert is not None and method.uses_preferences:
             raise RankGameError("--switch.expert cannot be combined with the pref methods' offline rankings")
+        if switch.expert is not None and method.policy == "opolo":
+            raise RankGameError(
+                "--switch.expert cannot be combined with opolo, whose policy regularizer reads the first expert"
+            )
         if switch.expert is None and switch.env is not None and method.uses_preferences:
             from rankgame.data.experts import shipped_envs
 
@@ -231,6 +240,8 @@ class TrainConfig:
             self.leader.validate()
             self.sac.validate()
             self.ppo.validate()
+            self.td3.validate()
+            self.opolo.validate()
         except ValueError as exc:
             raise RankGameError(f"bad setting: {exc}") from None
         if unused := unused_settings(self):
@@ -319,6 +330,10 @@ def unused_settings(config: TrainConfig) -> list[str]:
         names.append("sac.*")
     if method.policy != "ppo" and config.ppo != PPOConfig():
         names.append("ppo.*")
+    if method.policy != "opolo" and config.td3 != TD3Config():
+        names.append("td3.*")
+    if method.policy != "opolo" and config.opolo != OPOLOConfig():
+        names.append("opolo.*")
     if config.cloning != CloningConfig():
         names.append("cloning.*")
     if config.iq != IQConfig():

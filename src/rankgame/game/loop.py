@@ -124,7 +124,8 @@ class RankingGame:
             self.layout, loss, cfg.reward, self.rankings, columns, spectral_norm=cfg.ablation.spectral_norm
         )
         # The policy player relabels its batches with the reward player's current reward.
-        self.learner = make_policy_player(self.method.policy, self.env, cfg, self.player.reward_fn)
+        imitated = expert.trajectories[: cfg.expert_trajectories]
+        self.learner = make_policy_player(self.method.policy, self.env, cfg, self.player.reward_fn, imitated)
         self.reward_state = self.player.init(jax.random.fold_in(jax.random.key(cfg.seed), 1))
         self.rng = np.random.default_rng([cfg.seed, 1])
         self.scale = ScoreScale.of(expert, self.eval_env, cfg.seed)

@@ -18,10 +18,12 @@ dac                vanilla    logistic-gp    gda-replay    sac     lfd
 dacfo              vanilla    logistic-gp    gda-replay    sac     lfo
 trex               offline    bradley-terry  reward-first  sac     lfo, lfd
 f-irl              marginal   f-divergence   gda           sac     lfo
+opolo              vanilla    logistic-gp+   gda-replay    opolo   lfo
 =================  =========  =============  ============  ======  =========
 
-GAIfO and DACfO read state transitions ``(s, s')`` from observations, as in their papers; every
-other method reads ``s``, and ``(s, a)`` from demonstrations.
+GAIfO, DACfO and OPOLO read state transitions ``(s, s')`` from observations, as in their papers; every
+other method reads ``s``, and ``(s, a)`` from demonstrations. (``logistic-gp+`` stands for
+``logistic-gp-softplus``.)
 
 Each column names an entry of one module: rankings in :mod:`rankgame.game.rankings` (``vanilla`` ranks
 the agent below the expert; ``auto`` adds the time-aligned mixtures between them, App. B.1; ``pref``
@@ -31,7 +33,9 @@ losses in :data:`rankgame.reward.losses.LOSSES`, leaders in
 :mod:`rankgame.game.leaders`, policy players in :mod:`rankgame.policy` (SAC, PPO). GAIL and GAIfO
 (Ho & Ermon 2016; Torabi et al. 2018) and DAC and DACfO (Kostrikov et al. 2019) are the same
 discriminator game in LfD and LfO; the IMIT methods are their Stackelberg counterparts (the paper,
-Sec. 3); f-IRL (Ni et al. 2020) follows the gradient of an f-divergence between the state marginals.
+Sec. 3); f-IRL (Ni et al. 2020) follows the gradient of an f-divergence between the state marginals;
+OPOLO (Zhu et al. 2020) pays a TD3 policy player (:mod:`rankgame.policy.opolo`) GAIL's reward from a
+discriminator on state transitions and trains it on the dual form of transition-marginal matching.
 Adding a method means adding a row to :data:`METHODS`, not another training loop.
 
 Behavior cloning plays no game: ``bc`` (LfD) and ``bco`` (LfO) are trainers of their own
@@ -48,8 +52,10 @@ from rankgame.game.leaders import LeaderName
 from rankgame.game.rankings import RankingSource
 from rankgame.reward.inputs import RewardInput
 
-LossName = Literal["regression", "supremum", "logistic", "logistic-gp", "bradley-terry", "f-divergence"]
-PolicyName = Literal["sac", "ppo"]
+LossName = Literal[
+    "regression", "supremum", "logistic", "logistic-gp", "bradley-terry", "f-divergence", "logistic-gp-softplus"
+]
+PolicyName = Literal["sac", "ppo", "opolo"]
 Setting = Literal["lfo", "lfd"]
 
 
@@ -58,7 +64,7 @@ class Method:
     """Where rankings come from, which loss fits them, which player leads, who plays the policy, and
     whether the expert's actions may (``lfd``) or need not (``lfo``) be used (the first is the default);
     ``lfo_input`` is the reward's input from observations: ``s`` (the paper's ``r(s)``) or ``ss``, the
-    state transitions ``(s, s')`` of GAIfO and DACfO. ``reward_steps`` is the reward's gradient steps per
+    state transitions ``(s, s')`` of GAIfO, DACfO and OPOLO. ``reward_steps`` is the reward's gradient steps per
     iteration under a fixed-budget leader when the method sets them, and ``iteration_horizons`` an
     iteration's length in horizons when it is not the policy player's (both f-IRL's: 1 and 5)."""
 
@@ -92,6 +98,10 @@ METHODS: dict[str, Method] = {
     "dacfo": Method("vanilla", "logistic-gp", "gda-replay", "sac", ("lfo",), lfo_input="ss"),
     "trex": Method("offline", "bradley-terry", "reward-first"),
     "f-irl": Method("marginal", "f-divergence", "gda", "sac", ("lfo",), reward_steps=1, iteration_horizons=5),
+    # OPOLO's discriminator: 10 steps per 500 environment steps, 20 per iteration of one horizon.
+    "opolo": Method(
+        "vanilla", "logistic-gp-softplus", "gda-replay", "opolo", ("lfo",), lfo_input="ss", reward_steps=20
+    ),
 }
 
 

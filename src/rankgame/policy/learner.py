@@ -82,10 +82,9 @@ class SACLearner:
         self.config = config
         self.absorbing = absorbing
         sac_obs_dim = self.spec.obs_dim + int(absorbing)
-        objective = critic_objective or SoftBellman()
-        self.sac = SAC(sac_obs_dim, self.spec.act_dim, config, reward_fn, absorbing, objective)
+        self.agent = self._make_agent(sac_obs_dim, reward_fn, critic_objective or SoftBellman())
         self.demonstrations = demonstrations
-        self.state: SACState = self.sac.init(jax.random.key(seed))
+        self.state: SACState = self.agent.init(jax.random.key(seed))
         extras = ("rews",) if store_env_reward else ()
         self.buffer = ReplayBuffer(config.buffer_size, sac_obs_dim, self.spec.act_dim, extras=extras)
         self.rng = np.random.default_rng(seed)
@@ -94,6 +93,16 @@ class SACLearner:
         self._episode_return = 0.0
         self._updates_owed = 0.0
 
+    def _make_agent(self, obs_dim: int, reward_fn: RewardFn, critic_objective: CriticObjective) -> Any:
+        """The learning algorithm, with ``init``, ``act(actor_params, obs, noise)`` and ``update(state, batches,
+        reward_params)``: SAC here; a subclass may build another (OPOLO's TD3)."""
+        return SAC(obs_dim, self.spec.act_dim, self.config, reward_fn, self.absorbing, critic_objective)
+
+    @property
+    def sac(self) -> SAC:
+        """The SAC whose actor network the saved and returned policies run (the agent itself here)."""
+        return self.agent
+
     def env_step(self) -> StepResult:
         """Take one action (uniformly random during the first ``start_steps``) and store the transition."""
         if self.env_steps < self.config.start_steps:
@@ -101,7 +110,7 @@ class SACLearner:
         else:
             noise = self.rng.standard_normal((1, self.spec.act_dim)).astype(np.float32)
             obs = self._policy_obs(self._obs)[None]
-            act_norm = np.asarray(self.sac.act(self.state.actor_params, obs, noise))[0]
+            act_norm = np.asarray(self.agent.act(self.state.actor_params, obs, noise))[0]
             if not np.all(np.isfinite(act_norm)):
                 raise NonFiniteError("the policy's action")
         act = to_env_action(act_norm, self.spec.act_low, self.spec.act_high)
@@ -183,15 +192,23 @@ class SACLearner:
         if n_updates == 0:
             return None
         self._updates_owed -= n_updates
-        batches = self.buffer.sample(self.rng, n_updates, cfg.batch_size)
-        if self.demonstrations is not None:
-            batches = mix_demonstrations(batches, self.demonstrations, self.rng)
-        self.state, metrics = self.sac.update(self.state, batches, reward_params)
+        batches = self._complete_batches(self.buffer.sample(self.rng, n_updates, cfg.batch_size))
+        self.state, metrics = self.agent.update(self.state, batches, reward_params)
         values = {key: float(value) for key, value in metrics.items()}
         for name in ("critic", "actor", "alpha"):
-            if not np.isfinite(values[f"losses/{name}"]):
-                raise NonFiniteError(f"the SAC {name} loss" if name != "alpha" else "the SAC temperature")
+            if not np.isfinite(values.get(f"losses/{name}", 0.0)):
+                algorithm = type(self.agent).__name__
+                raise NonFiniteError(
+                    f"the {algorithm} {name} loss" if name != "alpha" else f"the {algorithm} temperature"
+                )
         return values
+
+    def _complete_batches(self, batches: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The sampled buffer batches ``(n, B, ...)`` with what the agent's objectives read besides: the
+        demonstrations' half, when there are any (:func:`~rankgame.policy.buffer.mix_demonstrations`)."""
+        if self.demonstrations is None:
+            return batches
+        return mix_demonstrations(batches, self.demonstrations, self.rng)
 
     def save_policy(self, path: Path, env_id: str, **metadata: Any) -> Path:
         """Write the current actor to ``path`` for ``rankgame evaluate`` (:func:`rankgame.policy.io.save_policy`)."""

@@ -9,10 +9,14 @@ absorbing states (:mod:`rankgame.absorbing`) and save their actor in the same fi
 * ``ppo``: :class:`~rankgame.policy.ppo_learner.PPOLearner`, on-policy, GAIL's and GAIfO's player
   (``--ppo.*``); an iteration is one rollout of ``--ppo.rollout-steps`` by default, so the reward
   moves between two PPO updates.
+* ``opolo``: :class:`~rankgame.policy.opolo.OPOLOLearner`, off-policy TD3 with OPOLO's objectives and
+  inverse action model (``--td3.*``, ``--opolo.*``), which reads the expert's state transitions; an
+  iteration is ``H`` steps.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
@@ -22,10 +26,18 @@ from rankgame.policy.sac import RewardFn
 
 if TYPE_CHECKING:
     from rankgame.config import TrainConfig
+    from rankgame.data.trajectories import Trajectory
 
 
-def make_policy_player(name: str, env: gym.Env, config: TrainConfig, reward_fn: RewardFn) -> Any:
-    """The policy player ``name`` (``sac`` or ``ppo``) acting in ``env``, paid by ``reward_fn``."""
+def make_policy_player(
+    name: str, env: gym.Env, config: TrainConfig, reward_fn: RewardFn, expert: Sequence[Trajectory]
+) -> Any:
+    """The policy player ``name`` (``sac``, ``ppo`` or ``opolo``) acting in ``env``, paid by ``reward_fn``;
+    ``expert`` holds the imitated trajectories (read by ``opolo`` only)."""
+    if name == "opolo":
+        from rankgame.policy.opolo import OPOLOLearner
+
+        return OPOLOLearner(env, config.td3, config.opolo, config.seed, reward_fn, expert, config.env)
     if name == "ppo":
         from rankgame.policy.ppo_learner import PPOLearner
 

@@ -22,6 +22,8 @@ declares how the reward handed to the policy is bounded to ``[-r_max, r_max]``:
   of agent and expert inputs (:func:`gradient_penalty`). The policy is paid DAC's
   ``log D - log(1 - D) = x``, clipped to ``[-r_max, r_max]``; with absorbing states the sign of this
   reward is no bias (Kostrikov et al., Sec. 4.2).
+* ``logistic-gp-softplus``: the discriminator with the gradient penalty, paying GAIL's
+  ``-log(1 - D) = softplus(x)`` (capped at ``r_max``): OPOLO's (Zhu et al. 2020).
 * ``f-divergence``: f-IRL's reward objective (Ni et al. 2020), the covariance over trajectories of the
   summed rewards with the summed ``h_f`` of an estimated density ratio (:func:`f_divergence_surrogate`),
   for the marginal rankings (:mod:`rankgame.game.rankings`). The policy sees the clipped reward.
@@ -277,6 +279,13 @@ LOSSES: dict[str, RankingLoss] = {
     "logistic-gp": RankingLoss(
         _logistic,
         "clip",
+        regresses_targets=False,
+        gradient_penalty=True,
+        log_columns=("reward/accuracy", "reward/gradient_penalty"),
+    ),
+    "logistic-gp-softplus": RankingLoss(
+        _logistic,
+        "softplus",
         regresses_targets=False,
         gradient_penalty=True,
         log_columns=("reward/accuracy", "reward/gradient_penalty"),
