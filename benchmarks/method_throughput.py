@@ -5,8 +5,10 @@ does, evaluations every ``--eval-every`` steps included) and is compared with th
 policy player on the environment reward, with the same settings, timed in the same process: SAC for
 the rank-game methods, DAC, DACfO and T-REX, PPO for GAIL and GAIfO. BCO, which acts with a cloned
 policy and fits only at round ends, is compared with SAC, and so is IQ-Learn, which runs with its own
-SAC preset (``iq-learn``: batches of 256 agent and 256 expert rows). The first ``--warmup`` steps
-(random actions, compilation) are excluded. BC takes no environment steps and is left out.
+SAC preset (``iq-learn``: batches of 256 agent and 256 expert rows), and OPOLO, whose TD3 player
+(400-300 networks, batches of 100, one gradient step per environment step) starts updating after the
+warm-up instead of after its 10000 random steps. The first ``--warmup`` steps (random actions,
+compilation) are excluded. BC takes no environment steps and is left out.
 
     python benchmarks/method_throughput.py --env Hopper-v5 --steps 12000 \
         --methods rank-pal-auto dacfo gaifo bco --json
@@ -29,6 +31,7 @@ from rankgame.envs.make import make_env
 from rankgame.game.methods import METHODS, OWN_TRAINER_METHODS
 from rankgame.policy.ppo_learner import PPOLearner
 from rankgame.policy.sac import sac_preset
+from rankgame.policy.td3 import TD3Config
 
 
 def time_ppo(cfg: TrainConfig, warmup: int) -> float:
@@ -61,9 +64,12 @@ def main() -> None:
         reference = {"sac": time_sac(base, args.warmup), "ppo": time_ppo(base, args.warmup)}
         for method in args.methods:
             player = METHODS[method].policy if method in METHODS else "sac"
+            player = "sac" if player == "opolo" else player
             cfg = TrainConfig(env=args.env, method=method, steps=args.steps, eval_every=args.eval_every, out=Path(tmp))
             if method == "bco":  # time the rounds after the pre-demonstration phase
                 cfg = dataclasses.replace(cfg, cloning=CloningConfig(pre_steps=args.warmup))
+            if method == "opolo":  # time TD3's updates, not its random warm-up
+                cfg = dataclasses.replace(cfg, td3=TD3Config(start_steps=args.warmup, update_after=args.warmup))
             if (own := OWN_TRAINER_METHODS.get(method)) is not None and own.sac_preset is not None:
                 cfg = dataclasses.replace(cfg, sac=sac_preset(own.sac_preset))
             rate = time_game(cfg, args.warmup)

@@ -115,11 +115,31 @@ TOY_PPO_ARGS = (
 )
 
 
+#: OPOLO's TD3 player on the toy task (its defaults wait 10000 random steps).
+TOY_OPOLO_ARGS = (
+    "--env",
+    "rankgame/PointGoal-v0",
+    "--td3.hidden-sizes",
+    "64",
+    "64",
+    "--td3.start-steps",
+    "400",
+    "--td3.update-after",
+    "400",
+    "--td3.update-every",
+    "40",
+    "--reward.batch-size",
+    "256",
+    "--no-progress",
+    "--no-tensorboard",
+)
+
+
 def toy_train_args(method: str) -> tuple[str, ...]:
-    """:data:`TOY_TRAIN_ARGS` or :data:`TOY_PPO_ARGS`, whichever player ``method`` uses."""
+    """:data:`TOY_TRAIN_ARGS`, :data:`TOY_PPO_ARGS` or :data:`TOY_OPOLO_ARGS`, whichever player ``method`` uses."""
     from rankgame.game.methods import METHODS
 
-    return TOY_PPO_ARGS if METHODS[method].policy == "ppo" else TOY_TRAIN_ARGS
+    return {"ppo": TOY_PPO_ARGS, "opolo": TOY_OPOLO_ARGS}.get(METHODS[method].policy, TOY_TRAIN_ARGS)
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess[str]:

@@ -98,9 +98,10 @@ METHODS: dict[str, Method] = {
     "dacfo": Method("vanilla", "logistic-gp", "gda-replay", "sac", ("lfo",), lfo_input="ss"),
     "trex": Method("offline", "bradley-terry", "reward-first"),
     "f-irl": Method("marginal", "f-divergence", "gda", "sac", ("lfo",), reward_steps=1, iteration_horizons=5),
-    # OPOLO's discriminator: 10 steps per 500 environment steps, 20 per iteration of one horizon.
+    # OPOLO's discriminator: the authors' 10 steps per 500 environment steps, 20 per horizon, rounded up to
+    # whole fused calls of the reward player (8 steps each).
     "opolo": Method(
-        "vanilla", "logistic-gp-softplus", "gda-replay", "opolo", ("lfo",), lfo_input="ss", reward_steps=20
+        "vanilla", "logistic-gp-softplus", "gda-replay", "opolo", ("lfo",), lfo_input="ss", reward_steps=24
     ),
 }
 

@@ -50,7 +50,8 @@ class TD3Config:
     exploration_noise: float = 0.1
     """Standard deviation of the Gaussian noise added to the actor's actions when acting."""
     target_noise: float = 0.2
-    """Standard deviation of the target policy smoothing noise (TD3's critic objective)."""
+    """Standard deviation of the target policy smoothing noise of TD3's own critic objective (OPOLO's dual
+    objective bootstraps the online actor's action without noise)."""
     target_noise_clip: float = 0.5
     """Bound on the absolute target policy smoothing noise."""
     start_steps: int = 10_000
