@@ -1,7 +1,7 @@
 """The policy players a method can name (the ``policy`` column of :data:`rankgame.game.methods.METHODS`).
 
-Both drive one environment the same way: ``env_step()`` once per environment step, then
-``maybe_update(reward_params)``, with every batch relabelled by the game's current reward; both use
+Each drives one environment the same way: ``env_step()`` once per environment step, then
+``maybe_update(reward_params)``, with every batch relabelled by the game's current reward; all use
 absorbing states (:mod:`rankgame.absorbing`) and save their actor in the same file format.
 
 * ``sac``: :class:`~rankgame.policy.learner.SACLearner`, off-policy, the ranking game's player
