@@ -78,3 +78,27 @@ def test_resume_keeps_every_tensorboard_point_once(tmp_path: Path) -> None:
     resumed.log({"env_steps": 3000, "eval_return": 3.5})
     resumed.close()
     assert _tensorboard_scalars(tmp_path / "tb", "eval_return") == [(1000, 1.0), (2000, 2.0), (3000, 3.5)]
+
+
+def test_tensorboard_gets_the_settings_as_hyperparameters(tmp_path: Path) -> None:
+    from tensorboardX.proto.event_pb2 import Event
+    from tensorboardX.proto.plugin_hparams_pb2 import HParamsPluginData
+
+    config = {"method": "dacfo", "seed": 3, "tensorboard": True, "sac": {"lr": 0.001, "hidden_sizes": [64, 64]}}
+    logger = RunLogger(tmp_path, ["env_steps", "eval_return"], hparams=config)
+    logger.close()
+    starts = []
+    for path in (tmp_path / "tb").glob("events.out.tfevents.*"):
+        data, offset = path.read_bytes(), 0
+        while offset < len(data):
+            length = int.from_bytes(data[offset : offset + 8], "little")
+            event = Event.FromString(data[offset + 12 : offset + 12 + length])
+            offset += 12 + length + 4
+            for value in event.summary.value:
+                if value.tag == "_hparams_/session_start_info":
+                    starts.append(HParamsPluginData.FromString(value.metadata.plugin_data.content).session_start_info)
+    assert len(starts) == 1
+    hparams = starts[0].hparams
+    assert hparams["method"].string_value == "dacfo" and hparams["seed"].number_value == 3
+    assert hparams["tensorboard"].bool_value is True
+    assert hparams["sac.lr"].number_value == 0.001 and hparams["sac.hidden_sizes"].string_value == "64 64"

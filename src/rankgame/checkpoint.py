@@ -35,6 +35,7 @@ RUN_CONTROL_OPTIONS = frozenset(
         "resume",
         "progress",
         "tensorboard",
+        "wandb",
         "eval_every",
         "eval_episodes",
         "checkpoint_every",

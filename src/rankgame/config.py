@@ -132,7 +132,10 @@ class TrainConfig:
     resume: bool = False
     """Continue the run in OUT from its last checkpoint, with the settings saved there."""
     tensorboard: bool = True
-    """Also write TensorBoard event files to OUT/tb."""
+    """Also write TensorBoard event files to OUT/tb, with the settings as hyperparameters."""
+    wandb: bool = False
+    """Also log to Weights & Biases (the wandb extra): the settings, every evaluation row and the final
+    policy, offline under OUT/wandb unless WANDB_MODE=online (upload later with wandb sync)."""
     progress: bool = True
     """Show a progress bar."""
     rankings: RankingsConfig = field(default_factory=RankingsConfig)
@@ -294,6 +297,7 @@ _RUN_OPTIONS = (
     "checkpoint_every",
     "resume",
     "tensorboard",
+    "wandb",
     "progress",
 )
 

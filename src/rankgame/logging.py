@@ -1,4 +1,5 @@
-"""Run logs: a CSV file with fixed columns and, optionally, TensorBoard event files."""
+"""Run logs: a CSV file with fixed columns and, optionally, TensorBoard event files with the run's settings
+as hyperparameters (:func:`rankgame.tracking.write_hparams`)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import io
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 from rankgame.atomic import atomic_write_bytes
 
@@ -19,7 +21,8 @@ class RunLogger:
     are written, so a killed run leaves only whole rows behind. ``resume_step`` continues a run from
     its checkpoint at that step: CSV rows after it are dropped (they will be logged again) and
     TensorBoard hides the earlier events after it (a purge from ``resume_step + 1``: the checkpoint's
-    own step was logged before it was saved), so no row is duplicated or missing.
+    own step was logged before it was saved), so no row is duplicated or missing. ``hparams``, the run's
+    settings as JSON, are recorded in TensorBoard's HParams tab.
     """
 
     def __init__(
@@ -29,6 +32,7 @@ class RunLogger:
         tensorboard: bool = True,
         step_key: str = "env_steps",
         resume_step: int | None = None,
+        hparams: Mapping[str, Any] | None = None,
     ) -> None:
         self.path = Path(out_dir) / "metrics.csv"
         self.step_key = step_key
@@ -47,6 +51,10 @@ class RunLogger:
 
             purge_step = None if resume_step is None else resume_step + 1
             self._tb = SummaryWriter(str(Path(out_dir) / "tb"), purge_step=purge_step)
+            if hparams is not None:
+                from rankgame.tracking import write_hparams
+
+                write_hparams(self._tb, hparams)
 
     def log(self, row: Mapping[str, float | int]) -> None:
         """Write one row; keys outside the columns go to TensorBoard only."""

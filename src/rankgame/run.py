@@ -51,6 +51,9 @@ from rankgame.logging import RunLogger
 #: ``callback(step, row)`` is called after every evaluation; returning False stops the run.
 Callback = Callable[[int, dict[str, float]], bool | None]
 
+#: The actor of a run's last evaluation, in the run folder (``rankgame evaluate --policy``).
+POLICY_NAME = "policy.msgpack"
+
 
 class Trainer(Protocol):
     """What :func:`run` drives."""
@@ -95,6 +98,7 @@ class RunSettings:
     tensorboard: bool
     progress: bool
     description: str
+    wandb: bool = False
 
 
 @dataclass
@@ -159,7 +163,12 @@ def run(
         atomic_write_bytes(out / "config.json", json.dumps({"command": command, **config}, indent=2).encode())
     with _writing(out / "metrics.csv", out, last_saved):
         resume_step = trainer.env_steps if settings.resume else None
-        logger = RunLogger(out, columns, settings.tensorboard, resume_step=resume_step)
+        logger = RunLogger(out, columns, settings.tensorboard, resume_step=resume_step, hparams=config)
+    tracker = None
+    if settings.wandb:
+        from rankgame.tracking import WandbRun
+
+        tracker = WandbRun(out, config, settings.description)
     bar = tqdm(
         total=settings.steps,
         initial=trainer.env_steps,
@@ -188,6 +197,8 @@ def run(
                     last_row.update(trainer.training_metrics())
                     with _writing(out / "metrics.csv", out, last_saved):
                         logger.log(last_row)
+                    if tracker is not None:
+                        tracker.log(last_row)
                     with _writing(out, out, last_saved):
                         trainer.save_policies(out, step, last_row)
                     bar.set_postfix(trainer.postfix(last_row))
@@ -215,6 +226,8 @@ def run(
     finally:
         bar.close()
         logger.close()
+        if tracker is not None:
+            tracker.finish(out / POLICY_NAME)
     return {**last_row, "env_steps": trainer.env_steps, "stopped_early": stopped_early}
 
 

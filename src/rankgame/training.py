@@ -115,7 +115,12 @@ def train(
         config.tensorboard,
         config.progress,
         f"{config.method} {config.env}",
+        config.wandb,
     )
+    if config.wandb:  # before anything is written
+        from rankgame.tracking import require_wandb
+
+        require_wandb()
     resumed = open_run(settings, as_json)
     # Bad tasks or data fail before OUT exists.
     trainer, columns = build_trainer(config, expert, preferences, switch_expert)

@@ -45,6 +45,7 @@ from rankgame.errors import NonFiniteError, RankGameError, nonfinite_fields, req
 from rankgame.policy.io import save_policy
 from rankgame.policy.learner import make_policy_fn
 from rankgame.policy.sac import SAC, SACConfig
+from rankgame.run import POLICY_NAME
 from rankgame.scores import EVAL_COLUMNS, ScoreScale, score_postfix
 
 #: ``|a|`` of a normalized action is clipped to at most this before ``atanh`` in :func:`tanh_gaussian_nll`.
@@ -57,9 +58,6 @@ ACTION_CLIP = 1.0 - 1e-5
 #: Expert actions may leave the action box by this much (in normalized units) before a file is refused:
 #: float rounding of actions recorded on the bounds, not actions in other units.
 ACTION_BOX_TOLERANCE = 1e-3
-
-#: The policy file of a cloning run, in the run folder (``rankgame evaluate --policy``).
-POLICY_NAME = "policy.msgpack"
 
 Batch = dict[str, jax.Array]
 

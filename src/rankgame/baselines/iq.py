@@ -31,13 +31,11 @@ from rankgame.errors import nonfinite_fields, require
 from rankgame.policy.critic_objectives import InverseSoftQ
 from rankgame.policy.learner import SACLearner
 from rankgame.policy.sac import SACConfig
+from rankgame.run import POLICY_NAME
 from rankgame.scores import EVAL_COLUMNS, ScoreScale, score_postfix
 
 #: The objective's form in the authors' MuJoCo scripts, by task family; every other task gets ``v0``.
 AUTHORS_VARIANT: dict[str, Literal["v0", "value"]] = {"HalfCheetah": "value", "Ant": "value"}
-
-#: The actor of the run's last evaluation, in the run folder.
-POLICY_NAME = "policy.msgpack"
 
 #: Columns of an IQ-Learn run's ``metrics.csv``.
 IQ_LOG_COLUMNS = (

@@ -34,13 +34,11 @@ from rankgame.policy.players import iteration_steps, make_policy_player
 from rankgame.reward.inputs import InputLayout, parse_obs_columns
 from rankgame.reward.losses import LOSSES
 from rankgame.reward.player import RewardPlayer
+from rankgame.run import POLICY_NAME
 from rankgame.scores import EVAL_COLUMNS, ScoreScale, score_postfix
 
 #: Checkpoint array of the episodes finished in the iteration in progress.
 FINISHED_KEY = "game/finished"
-
-#: The actor of the run's last evaluation, in the run folder (``rankgame evaluate --policy``).
-POLICY_NAME = "policy.msgpack"
 
 LOG_COLUMNS = (
     *EVAL_COLUMNS,
