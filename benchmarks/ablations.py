@@ -4,15 +4,14 @@ Each ablation compares a few variants of RANK-PAL / RANK-RAL on the same tasks a
 method and the options that differ from the paper's defaults. Runs go to ``--root/ABLATION/VARIANT``
 and, once finished, their ``metrics.csv`` and ``config.json`` are archived under
 ``--archive/ABLATION/VARIANT`` (runs already archived are not repeated), exactly as in
-``sample_efficiency.py``, whose runner this uses. The summary is the mean and standard deviation over
-seeds of the normalized score at each ``--at`` step, as JSON and as a Markdown table, followed by a
+``sample_efficiency.py``, whose runner (a local ``rankgame sweep``) this uses. The summary is the mean
+and standard deviation over seeds of the normalized score at each ``--at`` step, as JSON and as a Markdown table, followed by a
 table of every run: the first evaluation at ``--threshold`` and the median, minimum and maximum of the
 evaluations in the second half of the run.
 
     python benchmarks/ablations.py --list
     python benchmarks/ablations.py reward-range --envs Hopper-v5 --steps 100000 --at 50000 100000 --dry-run
-    XLA_FLAGS="--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1" \\
-        python benchmarks/ablations.py rankings --envs Hopper-v5 --seeds 0 1 2 --steps 100000 --cores 0 1
+    python benchmarks/ablations.py rankings --envs Hopper-v5 --seeds 0 1 2 --steps 100000 --cores 2
     python benchmarks/ablations.py rankings --envs Hopper-v5 --steps 100000 --summarize-only --plot rankings.png
 
 On Pen and Door, ``--metric success`` summarizes the success rate (percent of evaluation episodes)
@@ -319,7 +318,7 @@ def main() -> None:
     )
     parser.add_argument("--root", type=Path, default=Path("runs/ablations"))
     parser.add_argument("--archive", type=Path, default=Path("benchmarks/results/ablations"))
-    parser.add_argument("--cores", nargs="+", default=["0", "1"], help="CPU cores to pin one run each to")
+    parser.add_argument("--cores", type=int, help="runs at once (default: the machine's cores)")
     parser.add_argument("--dry-run", action="store_true", help="print the training commands without running them")
     parser.add_argument("--summarize-only", action="store_true")
     parser.add_argument("--plot", type=Path, metavar="FILE", help="also draw the curves (plot extra)")
@@ -340,11 +339,11 @@ def main() -> None:
         parser.error(str(exc))
     if args.dry_run:
         for _, job in jobs:
-            line = shlex.join(["rankgame", *job.command(args.steps)[3:]])
+            line = shlex.join(job.command(args.steps))
             print(f"# archived, not run: {line}" if (job.archived / "metrics.csv").exists() else line)
         return
     if not args.summarize_only:
-        run_jobs([job for _, job in jobs], args.steps, args.cores)
+        run_jobs([job for _, job in jobs], args.steps, args.root, args.cores)
     rows = summarize(jobs, args.at, args.steps, args.threshold, args.metric)
     print(json.dumps({"ablation": args.ablation, "steps": args.steps, "metric": args.metric, "variants": rows}))
     print(f"\n{METRICS[args.metric].label}, mean ± standard deviation (seeds)\n")

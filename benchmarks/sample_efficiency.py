@@ -1,7 +1,8 @@
 """Normalized score of ranking-game methods at fixed step budgets, over seeds and tasks.
 
-Launches ``rankgame train`` for every (env, method, seed) not already finished under ``--root``,
-one per core of ``--cores``, each pinned to its core (the fastest way to use a 2-core machine), then prints
+Runs ``rankgame train`` for every (env, method, seed) not already finished under ``--root`` as a local
+``rankgame sweep`` (Ray Tune: ``--cores`` single-threaded runs at once, the fastest way to use a
+small machine; a run whose worker dies resumes from its checkpoint), then prints
 the mean and standard deviation across seeds of the normalized score at each checkpoint step
 (``--at``), as JSON and as a Markdown table, beside the authors' released curve of the same method.
 The authors' curves are moving averages over 20 evaluations, one every 1000 steps (see
@@ -26,12 +27,9 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import os
 import shlex
 import shutil
-import subprocess
 import sys
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
@@ -40,6 +38,7 @@ import numpy as np
 
 from rankgame.data.published import RELEASED_CURVES, TABLE1
 from rankgame.envs.variants import OBS_PREFIX_VARIANTS
+from rankgame.sweep import Trial, check_trials, launch_trials
 
 #: Authors' released curves (see :mod:`rankgame.data.published`).
 PUBLISHED = {
@@ -84,16 +83,19 @@ class Job:
     seed: int
     train_args: str = ""
 
+    def train_argv(self, steps: int) -> list[str]:
+        """The ``rankgame train`` options of the run (its folder as an absolute path)."""
+        argv = ["--env", self.env, "--method", self.method, "--seed", str(self.seed), "--steps", str(steps)]
+        return [*argv, "--out", str(self.out.resolve()), "--no-progress", *shlex.split(self.train_args)]
+
     def command(self, steps: int) -> list[str]:
-        """The ``rankgame train`` command line (``--resume`` once the run folder holds metrics)."""
-        cmd = [sys.executable, "-m", "rankgame.cli", "train", "--env", self.env, "--method", self.method]
-        cmd += ["--seed", str(self.seed), "--steps", str(steps), "--out", str(self.out), "--no-progress"]
-        cmd += shlex.split(self.train_args)
-        return cmd + (["--resume"] if (self.out / "metrics.csv").exists() else [])  # continues, or restarts
+        """The command line a user would type for the run (``--resume`` once its folder holds metrics)."""
+        resume = ["--resume"] if (self.out / "metrics.csv").exists() else []
+        return ["rankgame", "train", *self.train_argv(steps), *resume]
 
 
 def launch_all(args: argparse.Namespace) -> None:
-    """Run the missing trainings of ``--envs`` x ``--methods`` x ``--seeds``, one per core of ``--cores``."""
+    """Run the missing trainings of ``--envs`` x ``--methods`` x ``--seeds`` as a local sweep."""
     jobs = [
         Job(
             run_dir(args.root, env, method, seed),
@@ -107,41 +109,25 @@ def launch_all(args: argparse.Namespace) -> None:
         for method in args.methods
         for seed in args.seeds
     ]
-    run_jobs(jobs, args.steps, args.cores)
+    run_jobs(jobs, args.steps, args.root, args.cores)
 
 
-def run_jobs(jobs: list[Job], steps: int, cores: list[str]) -> None:
-    """Run every job not yet archived to ``steps``, one single-core process pinned to each of ``cores`` at a
-    time (a run that stopped short of ``steps`` continues with ``--resume``)."""
-    running: dict[str, tuple[subprocess.Popen, Job]] = {}  # core -> (process, its job)
+def run_jobs(jobs: list[Job], steps: int, root: Path, cores: int | None = None) -> None:
+    """Run every job not yet archived to ``steps`` on a local Ray Tune sweep (:func:`rankgame.sweep.launch_trials`:
+    ``cores`` single-threaded trials at once, each resuming its folder if it holds a run), then archive
+    the finished ones; Ray keeps its state in ``root/.ray``."""
     for job in jobs:
         archive_if_finished(job.out, job.archived, steps)
-        if (job.archived / "metrics.csv").exists():
-            continue
-        core = _free_core(running, cores, steps)
-        job.out.parent.mkdir(parents=True, exist_ok=True)
-        log = open(f"{job.out}.log", "a")  # noqa: SIM115  (closed when the process ends)
-        proc = subprocess.Popen(["taskset", "-c", core, *job.command(steps)], stdout=log, stderr=log, env=os.environ)
-        running[core] = (proc, job)
-    for core in list(running):
-        _wait_and_archive(*running.pop(core), steps)
-
-
-def _free_core(running: dict[str, tuple[subprocess.Popen, Job]], cores: list[str], steps: int) -> str:
-    """A core with no run on it, waiting for one to finish (and archiving it) if all are busy."""
-    while True:
-        for core in cores:
-            if core not in running:
-                return core
-            if running[core][0].poll() is not None:
-                _wait_and_archive(*running.pop(core), steps)
-                return core
-        time.sleep(5)
-
-
-def _wait_and_archive(proc: subprocess.Popen, job: Job, steps: int) -> None:
-    proc.wait()
-    archive_if_finished(job.out, job.archived, steps)
+    todo = [job for job in jobs if not (job.archived / "metrics.csv").exists()]
+    if not todo:
+        return
+    trials = [Trial(str(job.out), tuple(job.train_argv(steps)), steps) for job in todo]
+    check_trials(trials)
+    failed = launch_trials(trials, str((root / ".ray").resolve()), cores=cores)
+    for job in todo:
+        archive_if_finished(job.out, job.archived, steps)
+    if failed:
+        print(f"failed: {', '.join(failed)}", file=sys.stderr)
 
 
 def logged_folder(out: Path, archived: Path) -> Path | None:
@@ -298,7 +284,7 @@ def main() -> None:
     parser.add_argument("--threshold", type=float, default=80.0, help="score whose first crossing is reported")
     parser.add_argument("--root", type=Path, default=Path("runs/sample-efficiency"))
     parser.add_argument("--archive", type=Path, default=Path("benchmarks/results/sample-efficiency"))
-    parser.add_argument("--cores", nargs="+", default=["0", "1"], help="CPU cores to pin one run each to")
+    parser.add_argument("--cores", type=int, help="runs at once (default: the machine's cores)")
     parser.add_argument(
         "--train-args",
         default="",

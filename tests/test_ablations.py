@@ -21,10 +21,10 @@ def test_every_variant_is_a_valid_training_command(name: str, tmp_path: Path) ->
     labels = [variant.label for variant, _ in jobs]
     assert len(set(labels)) == len(labels)
     for variant, job in jobs:
-        argv = job.command(1000)[4:]  # after `python -m rankgame.cli train`
-        cfg, _ = train_config_from_argv(argv)
+        cfg, _ = train_config_from_argv(job.train_argv(1000))
         cfg.validate()
-        assert cfg.method == variant.method and cfg.out == job.out
+        assert cfg.method == variant.method and cfg.out == job.out.resolve()
+        assert job.command(1000)[:2] == ["rankgame", "train"] and "--resume" not in job.command(1000)
 
 
 def test_summary_is_the_mean_and_deviation_over_seeds(tmp_path: Path) -> None:

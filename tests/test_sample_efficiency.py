@@ -6,9 +6,19 @@ import argparse
 import sys
 from pathlib import Path
 
+import pytest
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
-from sample_efficiency import PUBLISHED, archive_if_finished, run_profile, summarize, window_mean  # noqa: E402
+from sample_efficiency import (  # noqa: E402
+    PUBLISHED,
+    Job,
+    archive_if_finished,
+    run_jobs,
+    run_profile,
+    summarize,
+    window_mean,
+)
 
 
 def test_window_mean_averages_the_evaluations_up_to_the_step() -> None:
@@ -60,6 +70,30 @@ def test_a_run_is_archived_only_once_it_reached_the_requested_steps(tmp_path: Pa
     archive_if_finished(out, archived, 20_000)
     assert (archived / "metrics.csv").read_text() == (out / "metrics.csv").read_text()
     assert (archived / "config.json").exists()
+
+
+def test_finished_runs_are_archived_and_only_the_rest_go_to_the_sweep(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import sample_efficiency
+
+    done = Job(tmp_path / "runs" / "a", tmp_path / "archive" / "a", "Hopper-v5", "rank-pal-auto", 0)
+    todo = Job(tmp_path / "runs" / "b", tmp_path / "archive" / "b", "Hopper-v5", "rank-pal-auto", 1, "--reward.lr 1e-4")
+    done.out.mkdir(parents=True)
+    (done.out / "metrics.csv").write_text("env_steps,normalized_score\n20000,7.5\n")
+    (done.out / "config.json").write_text("{}")
+    launched = []
+    monkeypatch.setattr(
+        sample_efficiency, "launch_trials", lambda trials, storage, cores: launched.append(trials) or []
+    )
+    run_jobs([done, todo], 20_000, tmp_path / "runs", cores=1)
+    assert (done.archived / "metrics.csv").exists()
+    [[trial]] = launched
+    assert trial.name == str(todo.out) and trial.steps == 20_000
+    assert trial.argv[-5:] == ("--out", str(todo.out.resolve()), "--no-progress", "--reward.lr", "1e-4")
+    launched.clear()
+    run_jobs([done], 20_000, tmp_path / "runs", cores=1)
+    assert launched == []  # nothing left to run: Ray is not started
 
 
 def test_the_variants_without_contact_forces_are_compared_with_their_tasks_published_curves() -> None:

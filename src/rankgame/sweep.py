@@ -202,6 +202,79 @@ def check_trials(grid: Sequence[Trial]) -> None:
             raise RankGameError(f"trial {trial.name}: {exc}") from None
 
 
+def _require_ray() -> None:
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        raise RankGameError("rankgame sweep needs Ray: pip install 'rankgame[sweep]'") from None
+
+
+def launch_trials(
+    todo: Sequence[Trial],
+    storage: str,
+    *,
+    cores: int | None = None,
+    address: str | None = None,
+    max_failures: int = 3,
+    verbose: int = 1,
+) -> list[str]:
+    """Run ``todo`` on Ray Tune, one single-threaded trial per CPU, each (re)starting ``rankgame train`` in
+    the folder its ``--out`` names; returns the names of the trials that failed.
+
+    Args:
+        todo: the trials (their ``argv`` name an absolute ``--out``).
+        storage: Ray's experiment state (a path or URI).
+        cores: trials at once on this machine (default: its cores); ignored with ``address``.
+        address: a running Ray cluster's address (``HOST:6379``, or ``auto``).
+        max_failures: restarts of a trial whose worker died (it resumes from its own checkpoint).
+        verbose: Ray's progress output (0 silent, 1 the progress table).
+    Raises:
+        RankGameError: Ray is missing or cannot start or be joined.
+    """
+    _require_ray()
+    import ray
+    from ray import tune
+
+    os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")  # the classic progress table (CLIReporter)
+    # Ray runs its workers at niceness 15 by default: on a machine with other work the trials would
+    # starve, and the trials are the sweep's work (a local Ray reads this when it starts).
+    os.environ.setdefault("RAY_worker_niceness", "0")
+    runtime_env = {"env_vars": SINGLE_THREAD_ENV}
+    try:
+        if address is not None:
+            ray.init(address=address, runtime_env=runtime_env, log_to_driver=False)
+        else:
+            ray.init(
+                num_cpus=cores or os.cpu_count() or 1,
+                runtime_env=runtime_env,
+                log_to_driver=False,
+                include_dashboard=False,
+            )
+    except (ConnectionError, RuntimeError, ValueError) as exc:
+        raise RankGameError(f"cannot start or join Ray at {address or 'this machine'}: {exc}") from None
+    try:
+        argv_by_name = {trial.name: list(trial.argv) for trial in todo}
+        reporter = tune.CLIReporter(
+            metric_columns=list(REPORTED), parameter_columns=["trial"], max_report_frequency=30, max_column_length=60
+        )
+        trainable = tune.with_parameters(_ray_trial, argv_by_name=argv_by_name)
+        tuner = tune.Tuner(
+            tune.with_resources(trainable, {"cpu": 1}),
+            param_space={"trial": tune.grid_search(list(argv_by_name))},
+            run_config=tune.RunConfig(
+                name="rankgame-sweep",
+                storage_path=storage,
+                failure_config=tune.FailureConfig(max_failures=max_failures),
+                progress_reporter=reporter,
+                verbose=verbose,
+            ),
+        )
+        results = tuner.fit()
+        return sorted((result.config or {}).get("trial", "?") for result in results if result.error)
+    finally:
+        ray.shutdown()
+
+
 def trial_finished(run: Path, steps: int) -> bool:
     """Whether the run folder's ``metrics.csv`` has its evaluation at ``steps`` (every run logs its last step)."""
     import csv
@@ -336,51 +409,10 @@ def run_sweep(
     check_grid(out, spec, resume)
     todo = [trial for trial in grid if not trial_finished(out / trial.name, trial.steps)]
     summary: dict[str, Any] = {"trials": len(grid), "ran": len(todo), "skipped": len(grid) - len(todo), "failed": []}
-    os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")  # the classic progress table (CLIReporter)
-    # Ray runs its workers at niceness 15 by default: on a machine with other work the trials would
-    # starve, and the trials are the sweep's work (a local Ray reads this when it starts).
-    os.environ.setdefault("RAY_worker_niceness", "0")
-    try:
-        import ray
-        from ray import tune
-    except ImportError:
-        raise RankGameError("rankgame sweep needs Ray: pip install 'rankgame[sweep]'") from None
+    _require_ray()
     if not resume:
         write_grid(out, spec)
-    if not todo:
-        return summary
-    runtime_env = {"env_vars": SINGLE_THREAD_ENV}
-    try:
-        if address is not None:
-            ray.init(address=address, runtime_env=runtime_env, log_to_driver=False)
-        else:
-            ray.init(
-                num_cpus=cores or os.cpu_count() or 1,
-                runtime_env=runtime_env,
-                log_to_driver=False,
-                include_dashboard=False,
-            )
-    except (ConnectionError, RuntimeError, ValueError) as exc:
-        raise RankGameError(f"cannot start or join Ray at {address or 'this machine'}: {exc}") from None
-    try:
-        argv_by_name = {trial.name: list(trial.argv) for trial in todo}
-        reporter = tune.CLIReporter(
-            metric_columns=list(REPORTED), parameter_columns=["trial"], max_report_frequency=30, max_column_length=60
-        )
-        trainable = tune.with_parameters(_ray_trial, argv_by_name=argv_by_name)
-        tuner = tune.Tuner(
-            tune.with_resources(trainable, {"cpu": 1}),
-            param_space={"trial": tune.grid_search(list(argv_by_name))},
-            run_config=tune.RunConfig(
-                name="rankgame-sweep",
-                storage_path=storage or str(out / ".ray"),
-                failure_config=tune.FailureConfig(max_failures=max_failures),
-                progress_reporter=reporter,
-                verbose=verbose,
-            ),
-        )
-        results = tuner.fit()
-        summary["failed"] = sorted((result.config or {}).get("trial", "?") for result in results if result.error)
-    finally:
-        ray.shutdown()
+    if todo:
+        options = {"cores": cores, "address": address, "max_failures": max_failures, "verbose": verbose}
+        summary["failed"] = launch_trials(todo, storage or str(out / ".ray"), **options)
     return summary
