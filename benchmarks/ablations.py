@@ -5,8 +5,8 @@ method and the options that differ from the paper's defaults. Runs go to ``--roo
 and, once finished, their ``metrics.csv`` and ``config.json`` are archived under
 ``--archive/ABLATION/VARIANT`` (runs already archived are not repeated), exactly as in
 ``sample_efficiency.py``, whose runner (a local ``rankgame sweep``) this uses. The summary is the mean
-and standard deviation over seeds of the normalized score at each ``--at`` step, as JSON and as a Markdown table, followed by a
-table of every run: the first evaluation at ``--threshold`` and the median, minimum and maximum of the
+and standard deviation over seeds of the normalized score at each ``--at`` step, as JSON and as a
+Markdown table, followed by a table of every run: the first evaluation at ``--threshold`` and the median, minimum and maximum of the
 evaluations in the second half of the run.
 
     python benchmarks/ablations.py --list
