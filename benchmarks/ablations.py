@@ -6,8 +6,8 @@ and, once finished, their ``metrics.csv`` and ``config.json`` are archived under
 ``--archive/ABLATION/VARIANT`` (runs already archived are not repeated), exactly as in
 ``sample_efficiency.py``, whose runner (a local ``rankgame sweep``) this uses. The summary is the mean
 and standard deviation over seeds of the normalized score at each ``--at`` step, as JSON and as a
-Markdown table, followed by a table of every run: the first evaluation at ``--threshold`` and the median, minimum and maximum of the
-evaluations in the second half of the run.
+Markdown table, followed by a table of every run: the first evaluation at ``--threshold`` and the
+median, minimum and maximum of the evaluations in the second half of the run.
 
     python benchmarks/ablations.py --list
     python benchmarks/ablations.py reward-range --envs Hopper-v5 --steps 100000 --at 50000 100000 --dry-run
