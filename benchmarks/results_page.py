@@ -22,8 +22,11 @@ ROOT = Path("benchmarks") / "results"  # relative to REPO, so that the page name
 ARCHIVES = (
     "sample-efficiency",  # the paper's settings, seeds 0-2
     "stability-heldout-hopper-pal",  # the paper's settings, held-out seeds
-    "baselines-lfo",  # GAIfO, DACfO, BCO (LfO, one expert trajectory)
+    "baselines-lfo",  # GAIfO, DACfO, BCO, f-IRL, OPOLO (LfO, one expert trajectory)
 )
+
+#: Archive folders that only the claims table reads (the ablations and the non-stationary runs).
+CLAIM_ARCHIVES = ("ablations", "ablations-door", "nonstationary")
 
 
 def main() -> None:
@@ -34,7 +37,8 @@ def main() -> None:
     out = args.out.resolve()
     os.chdir(REPO)
     archives = [ROOT / name for name in ARCHIVES if (ROOT / name).is_dir()]
-    print(write_report(archives, out, n_boot=args.boot))
+    claim_archives = [ROOT / name for name in CLAIM_ARCHIVES if (ROOT / name).is_dir()]
+    print(write_report(archives, out, n_boot=args.boot, claim_runs=claim_archives))
 
 
 if __name__ == "__main__":

@@ -286,3 +286,51 @@ def test_report_on_the_sample_efficiency_archive(capsys: pytest.CaptureFixture[s
     assert result.stdout.strip() == str(out / "results.md")
     page = (out / "results.md").read_text()
     assert "Hopper-v5" in page and (out / "img" / "curves_Hopper-v5.png").is_file()
+
+
+def test_a_claim_is_judged_from_its_comparisons_with_runs_on_both_sides() -> None:
+    from rankgame.claims import Claim, Comparison, Side, judge
+
+    ours, theirs, absent = Side("rank-pal-auto", "a", "ours"), Side("dacfo", label="theirs"), Side("bco")
+    values = {("ours", "Hopper-v5"): [60.0, 80.0], ("theirs", "Hopper-v5"): [50.0, 40.0, 30.0]}
+
+    def values_at(side: Side, env: str, step: int, metric: str) -> list[float]:
+        return values.get((side.name, env), []) if step == 100_000 else []
+
+    def collapses(side: Side, env: str) -> tuple[int, int] | None:
+        return {"ours": (1, 10), "theirs": (0, 0)}.get(side.name)
+
+    higher = Claim("x", "s", "p", (Comparison(ours, theirs, "Hopper-v5"), Comparison(ours, absent, "Hopper-v5")))
+    measured, verdict = judge(higher, values_at, collapses)
+    # means 70 and 40: the comparison holds; the other has no runs on one side and does not count
+    assert verdict == "reproduced"
+    assert (
+        measured
+        == "ours vs theirs, Hopper-v5 at 100k: 70.0 (n=2) vs 40.0 (n=3); ours vs bco, Hopper-v5 at 100k: not run"
+    )
+    reversed_claim = Claim("x", "s", "p", (Comparison(theirs, ours, "Hopper-v5"),))
+    assert judge(reversed_claim, values_at, collapses)[1] == "not reproduced"
+    assert judge(Claim("x", "s", "p", (Comparison(ours, absent, "Ant-v5"),)), values_at, collapses)[1] == "not run"
+    steadier = Claim("x", "s", "p", (Comparison(ours, theirs, "Hopper-v5"),), kind="steadier")
+    assert judge(steadier, values_at, collapses) == ("ours vs theirs, Hopper-v5: theirs never reached 80", "not run")
+
+
+def test_the_claims_table_reads_success_rates_and_names_the_verdict(tmp_path: Path) -> None:
+    from rankgame.claims import CLAIMS
+    from rankgame.report import claims_section, group_runs, load_runs
+
+    door = [claim for claim in CLAIMS if claim.statement.startswith("offline preferences solve Door")][0]
+    for label, method, successes in (
+        ("pal-pref", "rank-pal-pref", (1.0, 0.5)),
+        ("pal-auto", "rank-pal-auto", (0.2, 0.0)),
+    ):
+        for seed, success in enumerate(successes):
+            run = tmp_path / "ablations-door" / "preferences" / label / f"rankgame__Door-v0__s{seed}"
+            run.mkdir(parents=True)
+            (run / "metrics.csv").write_text(f"env_steps,normalized_score,eval_success\n60000,10,{success}\n")
+            config = {"command": "c", "env": "rankgame/Door-v0", "method": method, "seed": seed, "steps": 60000}
+            (run / "config.json").write_text(json.dumps(config))
+    lines = claims_section(group_runs(load_runs([tmp_path / "ablations-door"])), 80.0, 50.0)
+    (row,) = [line for line in lines if line.startswith(f"| {door.statement}")]
+    # success rates: (1.0 + 0.5) / 2 = 75% against (0.2 + 0.0) / 2 = 10%
+    assert "rankgame/Door-v0 at 60k: 75% (n=2) vs 10% (n=2)" in row and row.endswith("| **reproduced** |")

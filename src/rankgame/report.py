@@ -42,6 +42,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from rankgame.atomic import atomic_write_bytes
+from rankgame.claims import CLAIMS, Metric, Side, judge
 from rankgame.data.published import RELEASED_CURVES, TABLE1
 from rankgame.errors import RankGameError
 from rankgame.plot import read_curve
@@ -60,6 +61,8 @@ HELD_OUT_SEED = 100
 CONFIG_KEYS = ("command", "env", "method", "seed", "steps")
 #: The ``metrics.csv`` column the page reports.
 SCORE_COLUMN = "normalized_score"
+#: The success rate's column (Pen, Door), read for the claims.
+SUCCESS_COLUMN = "eval_success"
 #: The page's file name inside the output folder, and the figures' folder.
 PAGE_NAME = "results.md"
 IMAGE_FOLDER = "img"
@@ -82,6 +85,8 @@ class Run:
     """Environment steps of the evaluations ``(E,)``, increasing."""
     scores: np.ndarray = field(repr=False)
     """Normalized score of each evaluation ``(E,)``."""
+    success: dict[int, float] = field(default_factory=dict, repr=False)
+    """Success rate by environment step, on tasks that report one (``eval_success``)."""
 
     def score_at(self, step: int) -> float | None:
         """The score of the evaluation logged at exactly ``step`` environment steps; None if none was."""
@@ -154,6 +159,10 @@ def read_run(folder: Path, variant: str) -> Run:
         raise RankGameError(f"{path}: seed and steps must be integers") from None
     env, method = str(config["env"]), str(config["method"])
     steps, scores = read_curve(folder, SCORE_COLUMN)
+    try:
+        success = dict(zip(*read_curve(folder, SUCCESS_COLUMN), strict=True))
+    except RankGameError:  # a task without success
+        success = {}
     order = np.argsort(steps, kind="stable")
     # A trial of a rankgame sweep with variants is named ENV__METHOD__sSEED__LABEL: its variant gets /LABEL.
     trial = f"{env.replace('/', '__')}__{method}__s{seed}__"
@@ -170,6 +179,7 @@ def read_run(folder: Path, variant: str) -> Run:
         command=str(config["command"]),
         steps=np.asarray(steps, np.int64)[order],
         scores=np.asarray(scores, np.float64)[order],
+        success=success,
     )
 
 
@@ -456,10 +466,52 @@ class _Page:
         self.add(f"![{alt}]({IMAGE_FOLDER}/{name})", "")
 
 
+def claims_section(groups: dict[GroupKey, list[Run]], reach: float, below: float) -> list[str]:
+    """The claims table (:data:`rankgame.claims.CLAIMS`): each claim, the paper's figure, ours from ``groups``
+    and the verdict."""
+
+    def members(side: Side, env: str) -> list[Run]:
+        if side.variant is not None:
+            return groups.get(GroupKey(env, side.method, side.variant), [])
+        matching = [runs for key, runs in groups.items() if key.env == env and key.method == side.method]
+        return max(matching, key=len, default=[])
+
+    def values_at(side: Side, env: str, step: int, metric: Metric) -> list[float]:
+        runs = members(side, env)
+        found = [run.score_at(step) for run in runs] if metric == "score" else [run.success.get(step) for run in runs]
+        return [value for value in found if value is not None]
+
+    def collapses(side: Side, env: str) -> tuple[int, int] | None:
+        runs = members(side, env)
+        result = stability(runs, reach, below) if runs else None
+        return None if result is None else (result.collapsed, result.after)
+
+    body = []
+    for claim in CLAIMS:
+        measured, verdict = judge(claim, values_at, collapses)
+        body.append([claim.statement, claim.source, claim.paper, measured, f"**{verdict}**"])
+    intro = (
+        "Each claim is tested by comparisons of groups of runs (`rankgame.claims`): higher mean normalized "
+        "score (success rate on Door) at the step named, or for stability a smaller share of evaluations below "
+        f"{below:g} after first reaching {reach:g}. Verdict: reproduced when every comparison with runs on "
+        "both sides holds, not reproduced when one does not, not run when none has runs. Means over few seeds "
+        "decide, so each figure gives its number of runs (n)."
+    )
+    header = ["claim", "where", "paper", "ours (A vs B)", "verdict"]
+    return ["## Claims of the paper", "", intro, "", *_table(header, body), ""]
+
+
 def build_page(
-    runs: Sequence[Run], at: Sequence[int], n_boot: int, seed: int, reach: float, below: float
+    runs: Sequence[Run],
+    at: Sequence[int],
+    n_boot: int,
+    seed: int,
+    reach: float,
+    below: float,
+    claim_runs: Sequence[Run] = (),
 ) -> tuple[str, dict[str, bytes]]:
-    """The Markdown text of the page and its figures (name in ``img/`` -> PNG bytes)."""
+    """The Markdown text of the page and its figures (name in ``img/`` -> PNG bytes); ``claim_runs`` are read
+    for the claims table only."""
     groups = group_runs(runs)
     tasks = task_order(run.env for run in runs)
     rows = sorted({Row(key.method, key.variant) for key in groups})
@@ -485,6 +537,7 @@ def build_page(
         "within each task.",
         "",
     )
+    page.add(*claims_section(group_runs([*runs, *claim_runs]), reach, below))
 
     # Headline tables.
     header = ["method", "variant", *tasks]
@@ -672,13 +725,15 @@ def write_report(
     seed: int = 0,
     reach: float = 80.0,
     below: float = 50.0,
+    claim_runs: Sequence[Path] = (),
 ) -> Path:
     """Write ``out/results.md`` and its figures ``out/img/*.png`` from the run folders ``runs``; returns the
     page's path.
 
     ``runs``: run folders, or folders holding them (see the module docstring); ``at``: the steps of the
     headline tables and aggregates; ``n_boot`` and ``seed``: the bootstrap's samples and seed; ``reach``
-    and ``below``: the stability thresholds. Everything is read and drawn before anything is written;
+    and ``below``: the stability thresholds; ``claim_runs``: more run folders (or folders holding them) that
+    only the claims table reads, such as ablation archives. Everything is read and drawn before anything is written;
     each file is replaced atomically, the page last, so a failure leaves no half-written page.
     """
     out = Path(out)
@@ -693,7 +748,7 @@ def write_report(
     at = list(dict.fromkeys(at))
     loaded = load_runs(runs)
     _pyplot()  # a missing plot extra fails here, before any work
-    text, figures = build_page(loaded, at, n_boot, seed, reach, below)
+    text, figures = build_page(loaded, at, n_boot, seed, reach, below, load_runs(claim_runs))
     for name, data in figures.items():
         atomic_write_bytes(out / IMAGE_FOLDER / name, data)
     return atomic_write_bytes(out / PAGE_NAME, text.encode())
