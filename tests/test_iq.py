@@ -111,6 +111,13 @@ def test_mixed_batches_are_half_agent_half_expert_rows() -> None:
     np.testing.assert_array_equal(mixed["obs"][:, :4], 0.0)
     with pytest.raises(KeyError):
         mix_demonstrations({**agent, "rews": np.zeros((3, 4))}, demos, rng)
+    # From observations the expert rows take the actions of the agent rows in the same positions.
+    agent["acts"] = np.arange(12.0).reshape(3, 4, 1)
+    states_only = mix_demonstrations(agent, {k: v for k, v in demos.items() if k != "acts"}, rng)
+    np.testing.assert_array_equal(states_only["acts"][:, 4:], agent["acts"])
+    np.testing.assert_array_equal(states_only["obs"][:, 4:], 1.0)
+    with pytest.raises(KeyError):
+        mix_demonstrations(agent, {"obs": np.ones((10, 2))}, rng)
 
 
 def _trainer(expert: TrajectoryFile, seed: int = 0, n_expert: int = 2) -> IQTrainer:
@@ -186,8 +193,12 @@ def test_iq_restored_from_a_checkpoint_mid_episode_continues_deterministically(
 
 def test_iq_refuses_expert_data_without_actions(toy_expert: TrajectoryFile) -> None:
     episodes = tuple(dataclasses.replace(t, acts=np.zeros_like(t.acts)) for t in toy_expert.trajectories)
+    states_only = TrajectoryFile(toy_expert.env_id, episodes, toy_expert.metadata)
     with pytest.raises(RankGameError, match="every action in the expert data is 0"):
-        _trainer(TrajectoryFile(toy_expert.env_id, episodes, toy_expert.metadata))
+        _trainer(states_only)
+    # From observations the actions are never read.
+    lfo = IQTrainer(TINY_SAC, IQConfig(), POINT_GOAL_ID, states_only, 2, seed=0, eval_episodes=1, setting="lfo")
+    assert lfo.learner.demonstrations is not None and "acts" not in lfo.learner.demonstrations
 
 
 def test_iq_learn_trains_from_the_command_line_and_refuses_what_it_cannot_use(
@@ -205,8 +216,12 @@ def test_iq_learn_trains_from_the_command_line_and_refuses_what_it_cannot_use(
     assert [row["env_steps"] for row in rows] == ["200", "400"] and rows[-1]["losses/expert_reward"]
     saved = load_checkpoint(out / "checkpoint.npz")[0]["config"]
     assert saved["sac"]["actor_lr"] == 3e-5 and saved["sac"]["init_alpha"] == 0.01  # the iq-learn preset
+    lfo = tmp_path / "lfo"
+    result = run_main(
+        capsys, *base, "--setting", "lfo", "--steps", "200", "--sac.update-after", "100", "--out", str(lfo)
+    )
+    assert result.returncode == 0 and load_checkpoint(lfo / "checkpoint.npz")[0]["config"]["setting"] == "lfo"
     refusals = {
-        ("--setting", "lfo"): "iq-learn learns only from demonstrations (lfd)",
         ("--cloning.lr", "0.1"): "--cloning.* is not used by iq-learn",
         ("--iq.chi2-weight", "-1"): "iq.chi2_weight must be >= 0",
     }

@@ -54,7 +54,7 @@ def build_trainer(
     if config.method == "iq-learn":
         data, _ = expert_data(config, expert)
         args = (config.env, data, config.expert_trajectories, config.seed, config.eval_episodes)
-        return IQTrainer(config.sac, config.iq, *args), IQ_LOG_COLUMNS
+        return IQTrainer(config.sac, config.iq, *args, setting=config.resolved_setting), IQ_LOG_COLUMNS
     game = build_game(config, expert, preferences, switch_expert)
     return game, game.log_columns
 

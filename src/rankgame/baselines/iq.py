@@ -10,7 +10,9 @@ temperature are SAC's, updated on all rows of the mixed batches. :class:`IQTrain
 Settings follow the authors' MuJoCo scripts: the ``iq-learn`` SAC preset
 (:data:`~rankgame.policy.sac.SAC_PRESETS`: batches of 256 agent + 256 expert rows, actor lr 3e-5, critic
 lr 3e-4, fixed temperature 0.01, no random warm-up) and, per task, the ``v0`` or ``value`` form of the
-objective (:data:`AUTHORS_VARIANT`) with the chi-squared regularizer on. Episodes end at true
+objective (:data:`AUTHORS_VARIANT`) with the chi-squared regularizer on. From observations (``--setting
+lfo``) the expert rows take the actions of the agent rows they are paired with, the authors'
+``only_expert_states`` option, which the paper tried and found not to learn. Episodes end at true
 terminations, as in the authors' code: no absorbing states. ``rankgame export-reward`` writes the reward
 the critic implies (:mod:`rankgame.reward.export`, ``kind: soft-q``).
 """
@@ -77,16 +79,22 @@ class IQConfig:
         return InverseSoftQ(variant, self.chi2_weight)
 
 
-def demonstration_transitions(trajectories: tuple[Trajectory, ...], spec: EnvSpec) -> dict[str, np.ndarray]:
+def demonstration_transitions(
+    trajectories: tuple[Trajectory, ...], spec: EnvSpec, with_actions: bool = True
+) -> dict[str, np.ndarray]:
     """The expert's transitions as SAC batch fields, ``(N, ...)`` with ``N = sum T_i``: ``obs``, ``acts`` (in
-    the normalized box), ``next_obs`` and ``dones`` (1 on a trajectory's last step if it terminated).
+    the normalized box; left out without ``with_actions``), ``next_obs`` and ``dones`` (1 on a trajectory's
+    last step if it terminated).
 
     Raises:
         RankGameError: the data has no usable actions (:func:`~rankgame.baselines.cloning.expert_state_actions`).
     """
-    obs, acts = expert_state_actions(trajectories, spec)
     next_obs = np.concatenate([t.obs[1:] for t in trajectories]).astype(np.float32)
     dones = np.concatenate([t.terminated for t in trajectories]).astype(np.float32)
+    if not with_actions:
+        obs = np.concatenate([t.obs[:-1] for t in trajectories]).astype(np.float32)
+        return {"obs": obs, "next_obs": next_obs, "dones": dones}
+    obs, acts = expert_state_actions(trajectories, spec)
     return {"obs": obs, "acts": acts, "next_obs": next_obs, "dones": dones}
 
 
@@ -102,6 +110,8 @@ class IQTrainer:
         n_expert: how many expert trajectories to imitate.
         seed: seeds everything random.
         eval_episodes: episodes per evaluation.
+        setting: ``lfd``, or ``lfo``: the expert's actions are not read, and each expert row of a batch takes
+            the action of the agent row it is paired with (the authors' ``only_expert_states``).
 
     Raises:
         RankGameError: an unknown task, or expert data that does not fit it or has no actions.
@@ -116,13 +126,15 @@ class IQTrainer:
         n_expert: int,
         seed: int,
         eval_episodes: int,
+        setting: Literal["lfd", "lfo"] = "lfd",
     ) -> None:
         self.env_id, self.seed, self.eval_episodes = env_id, seed, eval_episodes
         self.command = ""
         """The command line recorded in saved policies."""
         self.eval_env = make_env(env_id)
         spec = env_spec(self.eval_env)
-        demonstrations = demonstration_transitions(expert_trajectories(expert, n_expert, spec), spec)
+        trajectories = expert_trajectories(expert, n_expert, spec)
+        demonstrations = demonstration_transitions(trajectories, spec, with_actions=setting == "lfd")
         objective = config.objective(env_id)
         self.learner = SACLearner(
             make_env(env_id),

@@ -122,7 +122,7 @@ class OwnTrainer:
 OWN_TRAINER_METHODS: dict[str, OwnTrainer] = {
     "bc": OwnTrainer(("lfd",), ("cloning",)),
     "bco": OwnTrainer(("lfo",), ("cloning",)),
-    "iq-learn": OwnTrainer(("lfd",), ("sac", "iq"), sac_preset="iq-learn"),
+    "iq-learn": OwnTrainer(("lfd", "lfo"), ("sac", "iq"), sac_preset="iq-learn"),
 }
 
 #: Every name ``--method`` accepts.

@@ -73,13 +73,16 @@ def mix_demonstrations(
     ``(n, 2B)`` that is 0 on the agent rows and 1 on the expert rows (IQ-Learn's batches).
 
     ``demonstrations`` holds arrays ``(N, ...)`` with the same fields as the batches (extra fields of the
-    batches are not allowed: the expert rows would have no value for them).
+    batches are not allowed: the expert rows would have no value for them), except that ``acts`` may be
+    missing (observations only): each expert row then takes the action of the agent row in the same
+    position, as IQ-Learn's authors do with ``only_expert_states``.
     """
-    if batches.keys() != demonstrations.keys():
+    if set(batches) - {"acts"} != set(demonstrations) - {"acts"} or not set(demonstrations) <= set(batches):
         raise KeyError(f"demonstration fields {sorted(demonstrations)} != batch fields {sorted(batches)}")
     n, batch_size = batches["obs"].shape[:2]
     idx = rng.integers(0, len(demonstrations["obs"]), size=(n, batch_size))
-    mixed = {name: np.concatenate([batch, demonstrations[name][idx]], axis=1) for name, batch in batches.items()}
+    expert = {name: demonstrations[name][idx] if name in demonstrations else batches[name] for name in batches}
+    mixed = {name: np.concatenate([batch, expert[name]], axis=1) for name, batch in batches.items()}
     flags = np.concatenate([np.zeros(batch_size, np.float32), np.ones(batch_size, np.float32)])
     mixed["is_expert"] = np.broadcast_to(flags, (n, 2 * batch_size)).copy()
     return mixed
