@@ -23,6 +23,8 @@ ARCHIVES = (
     "sample-efficiency",  # the paper's settings, seeds 0-2
     "stability-heldout-hopper-pal",  # the paper's settings, held-out seeds
     "baselines-lfo",  # GAIfO, DACfO, BCO, f-IRL, OPOLO (LfO, one expert trajectory)
+    "lfd-hopper",  # RANK-PAL(auto) and RANK-RAL(auto) from demonstrations (LfD, one expert trajectory)
+    "baselines-lfd",  # IQ-Learn (LfD, one expert trajectory)
 )
 
 #: Archive folders that only the claims table reads (the ablations and the non-stationary runs).
