@@ -15,7 +15,11 @@ Layout of a flagged observation: ``[obs (obs_dim,), flag ()]``, ``obs_dim + 1`` 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 
@@ -29,6 +33,27 @@ def absorbing_obs(obs_dim: int) -> np.ndarray:
     state = np.zeros(obs_dim + 1, np.float32)
     state[-1] = 1.0
     return state
+
+
+def absorbing_value(
+    reward_fn: Callable[[Any, dict[str, jax.Array]], jax.Array],
+    reward_params: Any,
+    flagged_obs_dim: int,
+    act_dim: int,
+    gamma: float,
+) -> jax.Array:
+    """Value ``()`` of the absorbing state under ``reward_fn``, ``r(s_abs) / (1 - gamma)``: it loops on
+    itself forever. ``flagged_obs_dim`` counts the flag; the self-loop's action is zeros ``(1, act_dim)``."""
+    s_abs = jnp.asarray(absorbing_obs(flagged_obs_dim - 1))[None]
+    zeros = jnp.zeros(1)
+    loop = {"obs": s_abs, "next_obs": s_abs, "acts": jnp.zeros((1, act_dim)), "dones": zeros, "rews": zeros}
+    return reward_fn(reward_params, loop)[0] / (1.0 - gamma)
+
+
+def weighted_mean(values: jax.Array, weights: jax.Array) -> jax.Array:
+    """Mean of ``values (..., B)`` over the last axis weighted by ``weights (B,)``, 0 when every weight is 0
+    (how the players leave absorbing rows out of their expectations)."""
+    return jnp.sum(values * weights, axis=-1) / jnp.maximum(jnp.sum(weights), 1e-8)
 
 
 def absorbing_flag(flagged: np.ndarray | jax.Array) -> np.ndarray | jax.Array:

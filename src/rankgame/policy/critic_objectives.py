@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any, Literal, Protocol
 import jax
 import jax.numpy as jnp
 
-from rankgame.absorbing import absorbing_flag
+from rankgame.absorbing import absorbing_flag, weighted_mean
 
 if TYPE_CHECKING:
     from rankgame.policy.sac import SAC, Batch, SACState
@@ -88,11 +88,6 @@ class SoftBellman:
         return jnp.sum(jnp.mean((q - target) ** 2, axis=1)), (q, {"losses/reward": jnp.mean(rews)})
 
 
-def _weighted_mean(values: jax.Array, weights: jax.Array) -> jax.Array:
-    """Mean of ``values (..., B)`` over the last axis, weighted by ``weights (B,)``."""
-    return jnp.sum(values * weights, axis=-1) / jnp.maximum(jnp.sum(weights), 1e-8)
-
-
 def inverse_soft_q_loss(
     q: jax.Array,
     value: jax.Array,
@@ -123,10 +118,10 @@ def inverse_soft_q_loss(
     implied = q - discounted_next
     rows = jnp.ones_like(value) if row_weights is None else row_weights
     if variant == "value":
-        value_term = _weighted_mean(value - discounted_next, rows)
+        value_term = weighted_mean(value - discounted_next, rows)
     else:
-        value_term = (1.0 - gamma) * _weighted_mean(value, expert_weights)
-    per_critic = -_weighted_mean(implied, expert_weights) + chi2_weight * _weighted_mean(implied**2, rows)
+        value_term = (1.0 - gamma) * weighted_mean(value, expert_weights)
+    per_critic = -weighted_mean(implied, expert_weights) + chi2_weight * weighted_mean(implied**2, rows)
     return jnp.mean(per_critic) + value_term, implied
 
 
@@ -180,8 +175,8 @@ class InverseSoftQ:
             q, value, discounted_next, is_expert, self.variant, self.chi2_weight, sac.config.gamma
         )
         metrics = {
-            "losses/expert_reward": jnp.mean(_weighted_mean(implied, is_expert)),
-            "losses/agent_reward": jnp.mean(_weighted_mean(implied, 1.0 - is_expert)),
+            "losses/expert_reward": jnp.mean(weighted_mean(implied, is_expert)),
+            "losses/agent_reward": jnp.mean(weighted_mean(implied, 1.0 - is_expert)),
             "losses/value": jnp.mean(value),
         }
         return loss, (q, metrics)

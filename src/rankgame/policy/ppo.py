@@ -52,7 +52,7 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from rankgame.absorbing import absorbing_obs
+from rankgame.absorbing import absorbing_value
 from rankgame.errors import nonfinite_fields, require
 from rankgame.nets import MLP
 from rankgame.policy.sac import Actor, Batch, RewardFn, env_reward, squashed_gaussian_sample
@@ -262,10 +262,7 @@ class PPO:
 
     def absorbing_value(self, reward_params: Any) -> jax.Array:
         """Value ``()`` of the absorbing state, ``r(s_abs) / (1 - gamma)``: it loops on itself forever."""
-        s_abs = jnp.asarray(absorbing_obs(self.obs_dim - 1))[None]
-        zeros = jnp.zeros(1)
-        loop = {"obs": s_abs, "next_obs": s_abs, "acts": jnp.zeros((1, self.act_dim)), "dones": zeros, "rews": zeros}
-        return self.reward_fn(reward_params, loop)[0] / (1.0 - self.config.gamma)
+        return absorbing_value(self.reward_fn, reward_params, self.obs_dim, self.act_dim, self.config.gamma)
 
     def gae_inputs(self, state: PPOState, rollout: Batch, reward_params: Any) -> dict[str, jax.Array]:
         """What GAE reads, each ``(T,)``: ``rews`` (relabelled by ``reward_fn``), ``values`` ``V(obs)``,

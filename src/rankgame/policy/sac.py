@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from rankgame.absorbing import absorbing_flag, absorbing_obs
+from rankgame.absorbing import absorbing_flag, absorbing_value, weighted_mean
 from rankgame.errors import nonfinite_fields, require
 from rankgame.nets import MLP
 from rankgame.policy.critic_objectives import CriticObjective, SoftBellman
@@ -170,11 +170,6 @@ def env_reward(_reward_params: Any, batch: Batch) -> jax.Array:
     return batch["rews"]
 
 
-def _weighted_mean(values: jax.Array, weights: jax.Array) -> jax.Array:
-    """Mean of ``values (B,)`` weighted by ``weights (B,)`` (0 when every weight is 0)."""
-    return jnp.sum(values * weights) / jnp.maximum(jnp.sum(weights), 1.0)
-
-
 @flax.struct.dataclass
 class SACState:
     """Everything SAC learns, as one pytree (saved, restored and carried through ``lax.scan``)."""
@@ -285,14 +280,14 @@ class SAC:
             mean, log_std = self.actor.apply(actor_params, batch["obs"])
             acts, logp = squashed_gaussian_sample(mean, log_std, noise)
             q_pi = jnp.min(self.critic.apply(critic_params, batch["obs"], acts), axis=0)
-            return _weighted_mean(alpha * logp - q_pi, live), logp
+            return weighted_mean(alpha * logp - q_pi, live), logp
 
         (actor_loss, logp), actor_grads = jax.value_and_grad(actor_loss_fn, has_aux=True)(state.actor_params)
         actor_updates, actor_opt_state = self.actor_tx.update(actor_grads, state.actor_opt_state)
         actor_params = optax.apply_updates(state.actor_params, actor_updates)
 
         log_alpha, alpha_opt_state = state.log_alpha, state.alpha_opt_state
-        entropy_gap = jax.lax.stop_gradient(_weighted_mean(logp, live) + self.target_entropy)
+        entropy_gap = jax.lax.stop_gradient(weighted_mean(logp, live) + self.target_entropy)
         if cfg.learn_alpha:
             alpha_grad = -entropy_gap  # d/d(log_alpha) of -log_alpha * (logp + target_entropy)
             alpha_updates, alpha_opt_state = self.alpha_tx.update(alpha_grad, state.alpha_opt_state)
@@ -314,7 +309,7 @@ class SAC:
             "losses/critic": critic_loss,
             "losses/actor": actor_loss,
             "losses/alpha": alpha,
-            "losses/entropy": -_weighted_mean(logp, live),
+            "losses/entropy": -weighted_mean(logp, live),
             "losses/q": jnp.mean(q),
             **critic_metrics,
         }
@@ -322,9 +317,7 @@ class SAC:
 
     def absorbing_value(self, reward_params: Any) -> jax.Array:
         """Value ``()`` of the absorbing state, ``r(s_abs) / (1 - gamma)``: it loops on itself forever."""
-        s_abs = jnp.asarray(absorbing_obs(self.obs_dim - 1))[None]
-        loop = {"obs": s_abs, "next_obs": s_abs, "acts": jnp.zeros((1, self.act_dim)), "rews": jnp.zeros(1)}
-        return self.reward_fn(reward_params, loop)[0] / (1.0 - self.config.gamma)
+        return absorbing_value(self.reward_fn, reward_params, self.obs_dim, self.act_dim, self.config.gamma)
 
     def _update_many(
         self, state: SACState, batches: Batch, reward_params: Any

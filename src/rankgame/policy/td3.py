@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from rankgame.absorbing import absorbing_obs
+from rankgame.absorbing import absorbing_value
 from rankgame.errors import nonfinite_fields, require
 from rankgame.policy.sac import Actor, Batch, RewardFn, TwinCritic, env_reward
 from rankgame.policy.td3_objectives import ActorObjective, ClippedDoubleQ, CriticObjective, MaxFirstCritic
@@ -171,9 +171,7 @@ class TD3:
 
     def absorbing_value(self, reward_params: Any) -> jax.Array:
         """Value ``()`` of the absorbing state, ``r(s_abs) / (1 - gamma)``: it loops on itself forever."""
-        s_abs = jnp.asarray(absorbing_obs(self.obs_dim - 1))[None]
-        loop = {"obs": s_abs, "next_obs": s_abs, "acts": jnp.zeros((1, self.act_dim)), "rews": jnp.zeros(1)}
-        return self.reward_fn(reward_params, loop)[0] / (1.0 - self.config.gamma)
+        return absorbing_value(self.reward_fn, reward_params, self.obs_dim, self.act_dim, self.config.gamma)
 
     def losses(
         self, state: TD3State, batch: Batch, reward_params: Any

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import jax
 import jax.numpy as jnp
 
-from rankgame.absorbing import absorbing_flag
+from rankgame.absorbing import absorbing_flag, weighted_mean
 
 if TYPE_CHECKING:
     from rankgame.policy.td3 import TD3, Batch, TD3State
@@ -62,11 +62,6 @@ class ActorObjective(Protocol):
 def live_rows(td3: TD3, obs: jax.Array) -> jax.Array:
     """``(B,)`` 1.0 on rows of ``obs (B, obs_dim)`` where the policy acts, 0.0 on absorbing states."""
     return 1.0 - absorbing_flag(obs) if td3.absorbing else jnp.ones(obs.shape[0])
-
-
-def weighted_mean(values: jax.Array, weights: jax.Array) -> jax.Array:
-    """Mean ``()`` of ``values (B,)`` weighted by ``weights (B,)`` (0 when every weight is 0)."""
-    return jnp.sum(values * weights) / jnp.maximum(jnp.sum(weights), 1.0)
 
 
 def bellman_target(
