@@ -138,6 +138,9 @@ def test_expert_run_resumes_and_trains_longer(tmp_path: Path) -> None:
     assert resumed.returncode == 0, resumed.stderr
     steps = [row.split(",")[0] for row in (out / "metrics.csv").read_text().splitlines()[1:]]
     assert steps == ["300", "600", "900"]
+    record = json.loads((out / "config.json").read_text())
+    assert "--resume" not in record["command"] and "--steps 600" in record["command"]
+    assert len(record["resumed_with"]) == 1 and "--resume" in record["resumed_with"][0]
     assert load_policy(out / "policy.msgpack").metadata["env_steps"] == 900
     assert load_trajectories(out / "trajectories.npz").metadata["train_steps"] == 900
     shorter = run_cli(*TOY_EXPERT_ARGS, "--steps", "300", "--out", str(out), "--resume")

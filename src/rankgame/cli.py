@@ -139,6 +139,7 @@ def _saved_settings(out: Path) -> dict[str, Any] | None:
     if not isinstance(saved, dict):
         raise RankGameError(f"{out / 'config.json'}: unreadable run settings (not a JSON object)")
     saved.pop("command", None)
+    saved.pop("resumed_with", None)
     return saved
 
 

@@ -137,6 +137,22 @@ def open_run(settings: RunSettings, config: dict[str, Any]) -> Resumed:
     return Resumed(metadata, arrays)
 
 
+def _config_record(path: Path, command: str, config: dict[str, Any], resuming: bool) -> dict[str, Any]:
+    """What ``config.json`` holds: the command that started the run, the commands that resumed it (in
+    order, under ``resumed_with``) and the settings. A resumed run keeps the first command it was
+    started with, so the archived record names the command that reproduces it."""
+    previous: dict[str, Any] = {}
+    if resuming and path.is_file():
+        try:
+            previous = json.loads(path.read_text())
+        except (OSError, ValueError):
+            previous = {}
+    if not isinstance(previous, dict) or not isinstance(previous.get("command"), str):
+        return {"command": command, **config}
+    resumes = [c for c in previous.get("resumed_with", []) if isinstance(c, str)]
+    return {"command": previous["command"], "resumed_with": [*resumes, command], **config}
+
+
 def run(
     trainer: Trainer,
     settings: RunSettings,
@@ -160,7 +176,8 @@ def run(
         clock.restore(resumed.metadata)
         last_row, last_saved = dict(resumed.metadata.get("last_row", {})), trainer.env_steps
     with _writing(out / "config.json", out, last_saved):
-        atomic_write_bytes(out / "config.json", json.dumps({"command": command, **config}, indent=2).encode())
+        record = _config_record(out / "config.json", command, config, resuming=resumed.metadata is not None)
+        atomic_write_bytes(out / "config.json", json.dumps(record, indent=2).encode())
     with _writing(out / "metrics.csv", out, last_saved):
         resume_step = trainer.env_steps if settings.resume else None
         logger = RunLogger(out, columns, settings.tensorboard, resume_step=resume_step, hparams=config)
