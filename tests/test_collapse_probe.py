@@ -1,0 +1,46 @@
+"""benchmarks/collapse_probe.py: the probe's rows on a tiny game, its figure and its refusals."""
+
+from __future__ import annotations
+
+import csv
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import TOY_TRAIN_ARGS
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+from collapse_probe import PROBE_COLUMNS, main  # noqa: E402
+
+
+def test_probe_rows_follow_the_evaluations_and_the_plot_is_written(tmp_path: Path, toy_expert_file: Path) -> None:
+    out = tmp_path / "run"
+    argv = [*TOY_TRAIN_ARGS, "--expert", str(toy_expert_file), "--steps", "1000", "--eval-every", "500"]
+    assert main([*argv, "--out", str(out)]) == 0
+    with (out / "probe.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    metrics = list(csv.DictReader((out / "metrics.csv").open()))
+    assert [r["env_steps"] for r in rows] == ["500", "1000"] == [r["env_steps"] for r in metrics]
+    assert set(rows[0]) == set(PROBE_COLUMNS)
+    for row, logged in zip(rows, metrics, strict=True):
+        values = {name: float(row[name]) for name in PROBE_COLUMNS}
+        assert all(np.isfinite(list(values.values())))
+        assert values["normalized_score"] == pytest.approx(float(logged["normalized_score"]), rel=1e-5)
+        for name in ("reward_expert", "reward_policy", "reward_stand", "reward_absorbing"):
+            assert 0.0 <= values[name] <= 10.0  # the rank loss bounds the reward to [0, k = 10]
+        # gamma = 0.99: standing for ever is worth 100 steps of its reward.
+        assert values["stand_forever"] == pytest.approx(100.0 * values["reward_stand"], rel=1e-4)
+        assert values["expert_forever"] == pytest.approx(100.0 * values["reward_expert"], rel=1e-4)
+        assert 1 <= values["policy_length"] <= 40  # the toy task's horizon
+    figure = tmp_path / "probe.png"
+    assert main(["--plot", str(figure), "--probe", str(out / "probe.csv")]) == 0
+    assert figure.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_methods_without_a_sac_game_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main([*TOY_TRAIN_ARGS, "--method", "bc", "--out", str(tmp_path / "bc")]) == 1
+    assert "only games with the SAC policy player" in capsys.readouterr().err
+    assert not (tmp_path / "bc").exists()
+    assert main(["--plot", str(tmp_path / "x.png"), "--probe", str(tmp_path / "missing.csv")]) == 1
