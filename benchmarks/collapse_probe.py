@@ -16,7 +16,8 @@ evaluation, writes one row of ``OUT/probe.csv`` measured on the run's current re
   expert's mean reward for ever;
 * ``q_expert``: mean ``min_i Q_i(s, pi(s))`` over the expert's states.
 
-Rewards are on the learned reward's scale (``[0, k]`` for the rank methods). ``--plot FIG`` draws the
+Rewards are on the learned reward's scale (regressed to ``[0, k]`` by the rank methods, bounded to
+``[-r_max, r_max]``). ``--plot FIG`` draws the
 normalized score, the rewards and the values against steps from ``probe.csv`` (matplotlib, the
 ``plot`` extra). Examples::
 

@@ -29,7 +29,7 @@ def test_probe_rows_follow_the_evaluations_and_the_plot_is_written(tmp_path: Pat
         assert all(np.isfinite(list(values.values())))
         assert values["normalized_score"] == pytest.approx(float(logged["normalized_score"]), rel=1e-5)
         for name in ("reward_expert", "reward_policy", "reward_stand", "reward_absorbing"):
-            assert 0.0 <= values[name] <= 10.0  # the rank loss bounds the reward to [0, k = 10]
+            assert -10.0 <= values[name] <= 10.0  # rewards are bounded to [-r_max, r_max], r_max = 10
         # gamma = 0.99: standing for ever is worth 100 steps of its reward.
         assert values["stand_forever"] == pytest.approx(100.0 * values["reward_stand"], rel=1e-4)
         assert values["expert_forever"] == pytest.approx(100.0 * values["reward_expert"], rel=1e-4)
