@@ -261,10 +261,11 @@ _LEARNS = {"lfd": "from demonstrations (lfd)", "lfo": "from observations (lfo)"}
 #: The options each piece reads, by dotted name; an option that no piece of a method reads must keep its
 #: default for that method (``unused_settings``).
 _RANKINGS_OPTIONS: dict[str, tuple[str, ...]] = {
-    "vanilla": ("rankings.k",),
-    "auto": ("rankings.k", "rankings.schedule", "rankings.beta", "rankings.interpolations"),
+    "vanilla": ("rankings.k", "rankings.still_weight"),
+    "auto": ("rankings.k", "rankings.schedule", "rankings.beta", "rankings.interpolations", "rankings.still_weight"),
     "pref": (
         "rankings.k",
+        "rankings.still_weight",
         "rankings.schedule",
         "rankings.beta",
         "rankings.pref_weight",
@@ -325,6 +326,8 @@ def unused_settings(config: TrainConfig) -> list[str]:
     ]
     budget = config.ablation.leader_budget or LEADERS[method.leader][1]
     used = set(_RANKINGS_OPTIONS[method.rankings]) | set(_BUDGET_OPTIONS[budget])
+    if not LOSSES[method.loss].regresses_targets:  # standing still is ranked by regressing targets
+        used.discard("rankings.still_weight")
     if not LOSSES[method.loss].gradient_penalty:
         unused.append("reward.gradient_penalty")
     names = [

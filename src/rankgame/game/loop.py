@@ -241,7 +241,7 @@ class RankingGame:
             self.env = self.learner.env
             self._episode_obs, self._episode_acts = [], []
         if self.switch.expert is not None:
-            self.rankings.data.replace_expert(self._switch_inputs, self.rng)
+            self.rankings.replace_expert(self._switch_inputs, self.rng)
             self.scale = ScoreScale.of(self.switch.expert, self.eval_env, self.cfg.seed)
 
     # --- what the run harness asks ------------------------------------------------------------

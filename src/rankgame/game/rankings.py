@@ -16,6 +16,15 @@
 * ``marginal``: f-IRL's comparison of the expert's and the agent's state marginals through an
   estimated density ratio (:class:`MarginalRankings`). Needs a marginal loss.
 
+The regression sources (vanilla, auto, pref) can also rank *standing still* at the agent's level: the
+expert's initial states held for the whole horizon (:meth:`~rankgame.reward.inputs.InputLayout.
+standing_still`), with the same mixtures toward the expert as agent data, fit with a share
+``still_weight`` of the agent-vs-expert loss:
+``(1 - w_s) L(agent vs expert) + w_s L(standing still vs expert)``. This is not in the paper. PAL ranks
+only the current agent data below the expert, so once the agent moves, no ranking holds a standing
+state and its reward is free to rise to the expert's; the standing-still ranking keeps it at the
+bottom for the whole run.
+
 Every source can also give the points of a gradient penalty (losses that have one): random
 interpolations between agent and expert inputs (:meth:`RankingData.sample_interpolates`).
 
@@ -86,6 +95,9 @@ class RankingsConfig:
     KL or Jensen-Shannon (marginal rankings: f-irl)."""
     ratio_steps: int = 1200
     """Density-ratio classifier steps before each reward turn (marginal rankings: f-irl)."""
+    still_weight: float = 0.0
+    """Share of the agent-vs-expert loss given to ranking standing still (the expert's initial states
+    held for the horizon) at the agent's level; 0 turns it off, the paper's method (vanilla, auto, pref)."""
 
     def validate(self, source: RankingSource) -> None:
         """Raise ``ValueError`` with a one-line reason for settings that make no sense for ``source``."""
@@ -98,6 +110,11 @@ class RankingsConfig:
                 (0.0 <= self.pref_noise <= 1.0, f"rankings pref_noise must lie in [0, 1] (got {self.pref_noise})"),
                 (self.snippet_length > 0, "rankings snippet_length must be positive"),
                 (self.ratio_steps > 0, "rankings ratio_steps must be positive"),
+                (0.0 <= self.still_weight < 1.0, f"rankings still_weight must lie in [0, 1) (got {self.still_weight})"),
+                (
+                    self.still_weight == 0.0 or source in ("vanilla", "auto", "pref"),
+                    "rankings still_weight is used only by the vanilla, auto and pref rankings",
+                ),
                 (
                     self.pref_noise == 0.0 or source in ("pref", "offline"),
                     "rankings pref_noise is used only by the pref and offline rankings",
@@ -134,6 +151,10 @@ class _StoredInData:
         """Inverse of :meth:`state_dict`."""
         self.data.load_state_dict(arrays)
 
+    def replace_expert(self, expert: np.ndarray, rng: np.random.Generator) -> None:
+        """Rank below other expert inputs ``(M', H, d)`` from now on (a changed intent)."""
+        self.data.replace_expert(expert, rng)
+
 
 @dataclass
 class Rankings(_StoredInData):
@@ -145,31 +166,50 @@ class Rankings(_StoredInData):
         offline: the pref rankings' fixed chain of offline trajectories, else None.
         offline_weight: ``w`` of Eq. 6 (ignored without ``offline``).
         penalty_points: also sample the points of a gradient penalty (a loss that has one).
+        still: standing still ranked below the expert, with the same mixtures (its agent data is fixed),
+            else None.
+        still_weight: ``w_s``, the share of the agent-vs-expert loss that ``still`` gets.
     """
 
     data: RankingData
     offline: OfflineRankings | None = None
     offline_weight: float = 0.0
     penalty_points: bool = False
+    still: RankingData | None = None
+    still_weight: float = 0.0
 
     def sample(self, rng: np.random.Generator, n_batches: int, batch_size: int) -> tuple[Any, ...]:
         """``n_batches`` training batches: inputs ``(n, B, d)``, targets ``(n, B)``, is-expert flags
         ``(n, B)``; with offline rankings, their states, targets, snippets and snippet targets
         (:meth:`OfflineRankings.sample`), else None; with ``penalty_points``, interpolated inputs
-        ``(n, B, d)``, else None."""
+        ``(n, B, d)``, else None; with ``still``, its inputs, targets and is-expert flags, else None."""
         inputs, targets, is_expert = self.data.sample(rng, n_batches, batch_size)
         offline = None if self.offline is None else self.offline.sample(rng, n_batches, batch_size)
         points = self.data.sample_interpolates(rng, n_batches, batch_size) if self.penalty_points else None
-        return inputs, targets, is_expert, offline, points
+        still = None if self.still is None else self.still.sample(rng, n_batches, batch_size)
+        return inputs, targets, is_expert, offline, points, still
+
+    def replace_expert(self, expert: np.ndarray, rng: np.random.Generator) -> None:
+        """Rank below other expert inputs ``(M', H, d)`` from now on (a changed intent), standing still too."""
+        self.data.replace_expert(expert, rng)
+        if self.still is not None:
+            self.still.replace_expert(expert, rng)
 
     def objective(self, raw_fn: RawRewardFn, loss: RankingLoss, r_max: float, penalty: float = 0.0) -> Objective:
-        """The loss of one batch: ``loss`` on the agent-vs-expert chain, with offline rankings Eq. 6, and
+        """The loss of one batch: ``loss`` on the agent-vs-expert chain (with ``still``, a share
+        ``still_weight`` of it on standing still against the expert), with offline rankings Eq. 6, and
         with ``penalty_points`` plus ``penalty`` times the gradient penalty."""
-        weight = self.offline_weight
+        weight, still_weight = self.offline_weight, self.still_weight
 
         def objective(params: Any, batch: tuple[Any, ...]) -> tuple[jax.Array, Metrics]:
-            inputs, targets, is_expert, offline, points = batch
+            inputs, targets, is_expert, offline, points, still = batch
             result = loss(raw_fn(params, inputs), targets, is_expert, jnp.ones_like(targets), r_max)
+            if still is not None:
+                still_inputs, still_targets, still_is_expert = still
+                still_loss, _ = loss(
+                    raw_fn(params, still_inputs), still_targets, still_is_expert, jnp.ones_like(still_targets), r_max
+                )
+                result = ((1.0 - still_weight) * result[0] + still_weight * still_loss, result[1])
             if offline is not None:
                 states, state_targets, snippets, snippet_targets = offline
                 state_loss, _ = regression_ranking_loss(raw_fn(params, states), state_targets)
@@ -295,6 +335,10 @@ class MarginalRankings:
 
         return objective
 
+    def replace_expert(self, expert: np.ndarray, rng: np.random.Generator) -> None:
+        """Compare with other expert inputs ``(M', H, d)`` from now on (a changed intent)."""
+        self.data.replace_expert(expert, rng)
+
     def state_dict(self) -> dict[str, np.ndarray]:
         """The agent data and the classifier."""
         return {**self.data.state_dict(), **flatten_tree("ratio", self.ratio_state)}
@@ -353,8 +397,14 @@ def build_rankings(
     data = RankingData(
         expert, lambdas, config.targets(lambdas), holdout_fraction, layout, time_aligned=mixup == "trajectory"
     )
+    still = None
+    if config.still_weight > 0.0:
+        if not loss.regresses_targets:
+            raise ValueError("rankings still_weight needs a loss that regresses targets")
+        still = RankingData(expert, lambdas, config.targets(lambdas), 0.0, layout, time_aligned=mixup == "trajectory")
+        still.add(list(layout.standing_still(expert[:, 0], expert.shape[1])), np.random.default_rng(0))
     if preferences is None:
-        return Rankings(data, penalty_points=loss.gradient_penalty)
+        return Rankings(data, penalty_points=loss.gradient_penalty, still=still, still_weight=config.still_weight)
     if source == "pref" and not loss.regresses_targets:
         raise ValueError("pref rankings need a loss that regresses targets")
     positions = np.arange(len(preferences) + 1) / len(preferences)
@@ -363,4 +413,4 @@ def build_rankings(
     )
     if source == "offline":
         return PairwiseRankings(data, offline, config.snippet_length)
-    return Rankings(data, offline, config.pref_weight, penalty_points=loss.gradient_penalty)
+    return Rankings(data, offline, config.pref_weight, loss.gradient_penalty, still, config.still_weight)

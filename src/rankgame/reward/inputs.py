@@ -58,6 +58,17 @@ class InputLayout:
         acts[:length] = acts_norm[:length]
         return np.concatenate([padded[:horizon], acts], axis=-1)
 
+    def standing_still(self, first: np.ndarray, horizon: int) -> np.ndarray:
+        """Reward inputs ``(n, H, d)`` of staying for ``horizon`` steps in the first state of each input
+        ``first (n, d)``: ``s`` repeated, the self-transition ``(s, s)``, or ``(s, 0)``, the action at the
+        middle of the normalized box (zero torque on the MuJoCo tasks)."""
+        state = first[:, : self.obs_dim + 1]
+        if self.kind == "ss":
+            state = np.concatenate([state, state], axis=-1)
+        elif self.kind == "sa":
+            state = np.concatenate([state, np.zeros((len(state), self.act_dim), state.dtype)], axis=-1)
+        return np.repeat(state[:, None], horizon, axis=1).astype(np.float32)
+
     def from_batch(self, batch: dict[str, jax.Array]) -> jax.Array:
         """Reward inputs ``(B, d)`` of a SAC batch (whose observations carry the absorbing flag)."""
         if self.kind == "s":
