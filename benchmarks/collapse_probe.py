@@ -19,12 +19,16 @@ evaluation, writes one row of ``OUT/probe.csv`` measured on the run's current re
 Rewards are on the learned reward's scale (regressed to ``[0, k]`` by the rank methods, bounded to
 ``[-r_max, r_max]``). ``--plot FIG`` draws the
 normalized score, the rewards and the values against steps from ``probe.csv`` (matplotlib, the
-``plot`` extra). Examples::
+``plot`` extra). ``--summary CSV...`` prints, as JSON, what each probe says before its collapses: for
+every evaluation after the run first reached 80 whose previous evaluation was not itself a collapse
+(below 50), whether it collapsed, and ``stand_over_policy``, the previous evaluation's ``reward_stand /
+reward_policy`` (how the reward the policy saw paid standing still against what it did). Examples::
 
     python benchmarks/collapse_probe.py --env Hopper-v5 --method rank-pal-auto --seed 0 \\
         --steps 300000 --no-tensorboard --out runs/probe/Hopper-v5__rank-pal-auto__s0
     python benchmarks/collapse_probe.py --plot docs/img/collapse-probe.png \\
         --probe runs/probe/Hopper-v5__rank-pal-auto__s0/probe.csv
+    python benchmarks/collapse_probe.py --summary runs/probe/*/probe.csv
 
 Only the games whose policy player is SAC (the rank and IMIT methods, DAC, DACfO, T-REX, f-IRL) can
 be probed. A resumed run appends to its ``probe.csv``.
@@ -34,6 +38,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -173,11 +178,7 @@ def plot_probe(probe_csv: Path, out: Path, title: str | None) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    with probe_csv.open() as handle:
-        rows = list(csv.DictReader(handle))
-    if not rows:
-        raise RankGameError(f"{probe_csv}: no probe rows")
-    column = {name: np.array([float(r[name]) for r in rows]) for name in PROBE_COLUMNS}
+    column = _read_probe(probe_csv)
     steps = column["env_steps"] / 1000
     fig, axes = plt.subplots(3, 1, figsize=(7, 8), sharex=True)
     axes[0].plot(steps, column["normalized_score"], "k-o", ms=3)
@@ -201,7 +202,51 @@ def plot_probe(probe_csv: Path, out: Path, title: str | None) -> None:
     fig.savefig(out, dpi=110)
 
 
+def _read_probe(probe_csv: Path) -> dict[str, np.ndarray]:
+    with probe_csv.open() as handle:
+        rows = list(csv.DictReader(handle))
+    if not rows:
+        raise RankGameError(f"{probe_csv}: no probe rows")
+    return {name: np.array([float(r[name]) for r in rows]) for name in PROBE_COLUMNS}
+
+
+def summarize_probe(probe_csv: Path, reach: float = 80.0, below: float = 50.0) -> dict[str, Any]:
+    """The evaluations after first reaching ``reach`` that follow one at ``below`` or more: their steps,
+    whether they fell below ``below``, and the previous evaluation's ``reward_stand / reward_policy``."""
+    column = _read_probe(probe_csv)
+    score = column["normalized_score"]
+    reached = np.flatnonzero(score >= reach)
+    rows = []
+    for i in range(int(reached[0]) + 1 if len(reached) else len(score), len(score)):
+        if score[i - 1] < below:
+            continue
+        rows.append(
+            {
+                "env_steps": int(column["env_steps"][i]),
+                "normalized_score": round(float(score[i]), 1),
+                "collapsed": bool(score[i] < below),
+                "stand_over_policy": round(float(column["reward_stand"][i - 1] / column["reward_policy"][i - 1]), 3),
+            }
+        )
+    ratios = {flag: [r["stand_over_policy"] for r in rows if r["collapsed"] == flag] for flag in (True, False)}
+    return {
+        "probe": str(probe_csv),
+        "collapses": len(ratios[True]),
+        "others": len(ratios[False]),
+        "stand_over_policy_before_collapses": ratios[True],
+        "stand_over_policy_before_others": ratios[False],
+        "rows": rows,
+    }
+
+
 def main(argv: list[str]) -> int:
+    if argv[:1] == ["--summary"]:
+        try:
+            print(json.dumps([summarize_probe(Path(path)) for path in argv[1:]], indent=1))
+        except (OSError, KeyError, ValueError, RankGameError) as exc:
+            print(f"collapse_probe: {exc}", file=sys.stderr)
+            return 1
+        return 0
     if "--plot" in argv:
         parser = argparse.ArgumentParser(description="Plot a probe.csv written by this script.")
         parser.add_argument("--plot", type=Path, required=True, help="image to write (.png, .svg)")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import sys
 from pathlib import Path
 
@@ -44,3 +45,28 @@ def test_methods_without_a_sac_game_are_refused(tmp_path: Path, capsys: pytest.C
     assert "only games with the SAC policy player" in capsys.readouterr().err
     assert not (tmp_path / "bc").exists()
     assert main(["--plot", str(tmp_path / "x.png"), "--probe", str(tmp_path / "missing.csv")]) == 1
+
+
+def test_the_summary_pairs_each_evaluation_after_reaching_80_with_the_reward_before_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Scores 40, 85, 30 (a collapse), 90, 95: the evaluation at 30k follows 85 (stand / policy = 6 / 4),
+    # 40k follows a collapse and is left out, 50k follows 90 (stand / policy = 2 / 8).
+    path = tmp_path / "probe.csv"
+    scores, stand, policy = [40, 85, 30, 90, 95], [1, 6, 1, 2, 1], [1, 4, 1, 8, 1]
+    with path.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(PROBE_COLUMNS)
+        for i, (score, r_stand, r_policy) in enumerate(zip(scores, stand, policy, strict=True)):
+            values = dict.fromkeys(PROBE_COLUMNS, 0.0)
+            values.update(
+                env_steps=10000 * (i + 1), normalized_score=score, reward_stand=r_stand, reward_policy=r_policy
+            )
+            writer.writerow([values[name] for name in PROBE_COLUMNS])
+    assert main(["--summary", str(path)]) == 0
+    (summary,) = json.loads(capsys.readouterr().out)
+    assert summary["collapses"] == 1 and summary["others"] == 1
+    assert summary["stand_over_policy_before_collapses"] == [1.5]
+    assert summary["stand_over_policy_before_others"] == [0.25]
+    assert [r["env_steps"] for r in summary["rows"]] == [30000, 50000]
+    assert main(["--summary", str(tmp_path / "missing.csv")]) == 1
