@@ -21,8 +21,10 @@ Rewards are on the learned reward's scale (regressed to ``[0, k]`` by the rank m
 normalized score, the rewards and the values against steps from ``probe.csv`` (matplotlib, the
 ``plot`` extra). ``--summary CSV...`` prints, as JSON, what each probe says before its collapses: for
 every evaluation after the run first reached 80 whose previous evaluation was not itself a collapse
-(below 50), whether it collapsed, and ``stand_over_policy``, the previous evaluation's ``reward_stand /
-reward_policy`` (how the reward the policy saw paid standing still against what it did). Examples::
+(below 50), whether it collapsed, ``stand_over_policy``, the previous evaluation's ``reward_stand /
+reward_policy`` (how the reward the policy saw paid standing still against what it did), and the
+probe episode's length and true reward per step (a whole episode at the healthy bonus alone is
+standing still; a short one is a fall). Examples::
 
     python benchmarks/collapse_probe.py --env Hopper-v5 --method rank-pal-auto --seed 0 \\
         --steps 300000 --no-tensorboard --out runs/probe/Hopper-v5__rank-pal-auto__s0
@@ -226,6 +228,8 @@ def summarize_probe(probe_csv: Path, reach: float = 80.0, below: float = 50.0) -
                 "normalized_score": round(float(score[i]), 1),
                 "collapsed": bool(score[i] < below),
                 "stand_over_policy": round(float(column["reward_stand"][i - 1] / column["reward_policy"][i - 1]), 3),
+                "policy_length": int(column["policy_length"][i]),
+                "policy_true_per_step": round(float(column["policy_true_per_step"][i]), 2),
             }
         )
     ratios = {flag: [r["stand_over_policy"] for r in rows if r["collapsed"] == flag] for flag in (True, False)}
