@@ -203,12 +203,13 @@ class Rankings(_StoredInData):
 
         def objective(params: Any, batch: tuple[Any, ...]) -> tuple[jax.Array, Metrics]:
             inputs, targets, is_expert, offline, points, still = batch
-            result = loss(raw_fn(params, inputs), targets, is_expert, jnp.ones_like(targets), r_max)
+
+            def chain_loss(x: jax.Array, t: jax.Array, e: jax.Array) -> tuple[jax.Array, Metrics]:
+                return loss(raw_fn(params, x), t, e, jnp.ones_like(t), r_max)
+
+            result = chain_loss(inputs, targets, is_expert)
             if still is not None:
-                still_inputs, still_targets, still_is_expert = still
-                still_loss, _ = loss(
-                    raw_fn(params, still_inputs), still_targets, still_is_expert, jnp.ones_like(still_targets), r_max
-                )
+                still_loss, _ = chain_loss(*still)
                 result = ((1.0 - still_weight) * result[0] + still_weight * still_loss, result[1])
             if offline is not None:
                 states, state_targets, snippets, snippet_targets = offline
@@ -394,14 +395,13 @@ def build_rankings(
         ratio = DensityRatio(expert.shape[-1])
         return MarginalRankings(data, ratio, config.divergence, config.ratio_steps, seed=ratio_seed)
     lambdas = lambda_grid(config.interpolations) if source == "auto" else np.array([0.0, 1.0])
-    data = RankingData(
-        expert, lambdas, config.targets(lambdas), holdout_fraction, layout, time_aligned=mixup == "trajectory"
-    )
+    time_aligned = mixup == "trajectory"
+    data = RankingData(expert, lambdas, config.targets(lambdas), holdout_fraction, layout, time_aligned=time_aligned)
     still = None
     if config.still_weight > 0.0:
         if not loss.regresses_targets:
             raise ValueError("rankings still_weight needs a loss that regresses targets")
-        still = RankingData(expert, lambdas, config.targets(lambdas), 0.0, layout, time_aligned=mixup == "trajectory")
+        still = RankingData(expert, lambdas, config.targets(lambdas), 0.0, layout, time_aligned=time_aligned)
         still.add(list(layout.standing_still(expert[:, 0], expert.shape[1])), np.random.default_rng(0))
     if preferences is None:
         return Rankings(data, penalty_points=loss.gradient_penalty, still=still, still_weight=config.still_weight)
