@@ -237,6 +237,8 @@ class TrainConfig:
             )
         if self.resolved_setting == "lfo" and self.resolved_reward_input == "sa":
             raise RankGameError("--reward-input sa needs expert actions: use --setting lfd")
+        if self.rankings.still_poses == "expert" and self.resolved_reward_input != "ss":
+            raise RankGameError("--rankings.still-poses expert ranks self-transitions (s, s): use --reward-input ss")
         try:
             self.rankings.validate(method.rankings)
             self.reward.validate()
@@ -258,14 +260,16 @@ class TrainConfig:
 
 _LEARNS = {"lfd": "from demonstrations (lfd)", "lfo": "from observations (lfo)"}
 
+#: The options of standing still ranked below the expert (regression sources and losses only).
+_STILL_OPTIONS = ("rankings.still_weight", "rankings.still_poses")
 #: The options each piece reads, by dotted name; an option that no piece of a method reads must keep its
 #: default for that method (``unused_settings``).
 _RANKINGS_OPTIONS: dict[str, tuple[str, ...]] = {
-    "vanilla": ("rankings.k", "rankings.still_weight"),
-    "auto": ("rankings.k", "rankings.schedule", "rankings.beta", "rankings.interpolations", "rankings.still_weight"),
+    "vanilla": ("rankings.k", *_STILL_OPTIONS),
+    "auto": ("rankings.k", "rankings.schedule", "rankings.beta", "rankings.interpolations", *_STILL_OPTIONS),
     "pref": (
         "rankings.k",
-        "rankings.still_weight",
+        *_STILL_OPTIONS,
         "rankings.schedule",
         "rankings.beta",
         "rankings.pref_weight",
@@ -327,7 +331,7 @@ def unused_settings(config: TrainConfig) -> list[str]:
     budget = config.ablation.leader_budget or LEADERS[method.leader][1]
     used = set(_RANKINGS_OPTIONS[method.rankings]) | set(_BUDGET_OPTIONS[budget])
     if not LOSSES[method.loss].regresses_targets:  # standing still is ranked by regressing targets
-        used.discard("rankings.still_weight")
+        used.difference_update(_STILL_OPTIONS)
     if not LOSSES[method.loss].gradient_penalty:
         unused.append("reward.gradient_penalty")
     names = [

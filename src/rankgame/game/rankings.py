@@ -16,14 +16,19 @@
 * ``marginal``: f-IRL's comparison of the expert's and the agent's state marginals through an
   estimated density ratio (:class:`MarginalRankings`). Needs a marginal loss.
 
-The regression sources (vanilla, auto, pref) can also rank *standing still* at the agent's level: the
-expert's initial states held for the whole horizon (:meth:`~rankgame.reward.inputs.InputLayout.
-standing_still`), with the same mixtures toward the expert as agent data, fit with a share
-``still_weight`` of the agent-vs-expert loss:
-``(1 - w_s) L(agent vs expert) + w_s L(standing still vs expert)``. This is not in the paper. PAL ranks
-only the current agent data below the expert, so once the agent moves, no ranking holds a standing
-state and its reward is free to rise to the expert's; the standing-still ranking keeps it at the
-bottom for the whole run.
+The regression sources (vanilla, auto, pref) can also rank *standing still* at the agent's level, with
+the same mixtures toward the expert as agent data, fit with a share ``still_weight`` of the
+agent-vs-expert loss: ``(1 - w_s) L(agent vs expert) + w_s L(standing still vs expert)``. This is not in
+the paper. PAL ranks only the current agent data below the expert, so once the agent moves, no ranking
+holds a standing state and its reward is free to rise to the expert's; the standing-still ranking keeps
+it at the bottom for the whole run. ``still_poses`` says which poses stand still:
+
+* ``initial``: the expert's initial states held for the whole horizon
+  (:meth:`~rankgame.reward.inputs.InputLayout.standing_still`);
+* ``expert``: every expert state ``e[t]`` held for one step, the self-transition ``(e[t], e[t])`` of an
+  ``(s, s')`` reward (:meth:`~rankgame.reward.inputs.InputLayout.held_still`). Its time-aligned mixture
+  with the expert's own transition is ``(e[t], e[t] + lambda (e[t+1] - e[t]))``: the reward is taught to
+  grow with the share of the expert's step taken, from any of the expert's poses.
 
 Every source can also give the points of a gradient penalty (losses that have one): random
 interpolations between agent and expert inputs (:meth:`RankingData.sample_interpolates`).
@@ -64,6 +69,7 @@ from rankgame.reward.targets import Schedule, lambda_grid, target_schedule
 
 RankingSource = Literal["vanilla", "auto", "pref", "offline", "marginal"]
 Mixup = Literal["trajectory", "state"]
+StillPoses = Literal["initial", "expert"]
 
 #: Regression target of agent inputs, the bottom of every chain (the paper's 0).
 AGENT_TARGET = 0.0
@@ -96,8 +102,12 @@ class RankingsConfig:
     ratio_steps: int = 1200
     """Density-ratio classifier steps before each reward turn (marginal rankings: f-irl)."""
     still_weight: float = 0.0
-    """Share of the agent-vs-expert loss given to ranking standing still (the expert's initial states
-    held for the horizon) at the agent's level; 0 turns it off, the paper's method (vanilla, auto, pref)."""
+    """Share of the agent-vs-expert loss given to ranking standing still at the agent's level; 0 turns it
+    off, the paper's method (vanilla, auto, pref)."""
+    still_poses: StillPoses = "initial"
+    """Which poses are ranked standing still (with ``still_weight``): ``initial``, the expert's initial
+    states held for the horizon; ``expert``, every expert state held for one step, the self-transition
+    ``(s, s)`` ranked below the expert's ``(s, s')`` (an ``(s, s')`` reward only)."""
 
     def validate(self, source: RankingSource) -> None:
         """Raise ``ValueError`` with a one-line reason for settings that make no sense for ``source``."""
@@ -114,6 +124,10 @@ class RankingsConfig:
                 (
                     self.still_weight == 0.0 or source in ("vanilla", "auto", "pref"),
                     "rankings still_weight is used only by the vanilla, auto and pref rankings",
+                ),
+                (
+                    self.still_poses == "initial" or self.still_weight > 0.0,
+                    "rankings still_poses needs still_weight > 0",
                 ),
                 (
                     self.pref_noise == 0.0 or source in ("pref", "offline"),
@@ -134,8 +148,8 @@ Objective = Callable[[Any, tuple[Any, ...]], tuple[jax.Array, Metrics]]
 
 
 class _StoredInData:
-    """Rankings whose only changing state is their ranking data ``self.data`` and that re-estimate
-    nothing before a reward turn (every source but ``marginal``)."""
+    """Rankings built on one ranking dataset ``self.data``; unless a source says otherwise, that data is
+    their only changing state and nothing is re-estimated before a reward turn."""
 
     data: RankingData
 
@@ -254,7 +268,7 @@ class PairwiseRankings(_StoredInData):
 
 
 @dataclass
-class MarginalRankings:
+class MarginalRankings(_StoredInData):
     """The ``marginal`` rankings of f-IRL (Ni et al. 2020): the expert's state marginal against the
     agent's, compared through an estimated density ratio.
 
@@ -336,10 +350,6 @@ class MarginalRankings:
 
         return objective
 
-    def replace_expert(self, expert: np.ndarray, rng: np.random.Generator) -> None:
-        """Compare with other expert inputs ``(M', H, d)`` from now on (a changed intent)."""
-        self.data.replace_expert(expert, rng)
-
     def state_dict(self) -> dict[str, np.ndarray]:
         """The agent data and the classifier."""
         return {**self.data.state_dict(), **flatten_tree("ratio", self.ratio_state)}
@@ -401,8 +411,14 @@ def build_rankings(
     if config.still_weight > 0.0:
         if not loss.regresses_targets:
             raise ValueError("rankings still_weight needs a loss that regresses targets")
+        if config.still_poses == "expert" and layout.kind != "ss":
+            raise ValueError("rankings still_poses expert needs an (s, s') reward")
         still = RankingData(expert, lambdas, config.targets(lambdas), 0.0, layout, time_aligned=time_aligned)
-        still.add(list(layout.standing_still(expert[:, 0], expert.shape[1])), np.random.default_rng(0))
+        if config.still_poses == "initial":
+            poses = layout.standing_still(expert[:, 0], expert.shape[1])
+        else:
+            poses = layout.held_still(expert)
+        still.add(list(poses), np.random.default_rng(0), real_only=True)
     if preferences is None:
         return Rankings(data, penalty_points=loss.gradient_penalty, still=still, still_weight=config.still_weight)
     if source == "pref" and not loss.regresses_targets:

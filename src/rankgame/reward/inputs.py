@@ -58,16 +58,21 @@ class InputLayout:
         acts[:length] = acts_norm[:length]
         return np.concatenate([padded[:horizon], acts], axis=-1)
 
+    def held_still(self, inputs: np.ndarray) -> np.ndarray:
+        """Reward inputs ``(..., d)`` of staying one step in the state each input ``(..., d)`` starts in:
+        the state itself, the self-transition ``(s, s)``, or ``(s, 0)``, the action at the middle of the
+        normalized box (zero torque on the MuJoCo tasks)."""
+        state = inputs[..., : self.obs_dim + 1]
+        if self.kind == "ss":
+            return np.concatenate([state, state], axis=-1).astype(np.float32)
+        if self.kind == "sa":
+            return np.concatenate([state, np.zeros((*state.shape[:-1], self.act_dim), state.dtype)], axis=-1)
+        return state.astype(np.float32)
+
     def standing_still(self, first: np.ndarray, horizon: int) -> np.ndarray:
         """Reward inputs ``(n, H, d)`` of staying for ``horizon`` steps in the first state of each input
-        ``first (n, d)``: ``s`` repeated, the self-transition ``(s, s)``, or ``(s, 0)``, the action at the
-        middle of the normalized box (zero torque on the MuJoCo tasks)."""
-        state = first[:, : self.obs_dim + 1]
-        if self.kind == "ss":
-            state = np.concatenate([state, state], axis=-1)
-        elif self.kind == "sa":
-            state = np.concatenate([state, np.zeros((len(state), self.act_dim), state.dtype)], axis=-1)
-        return np.repeat(state[:, None], horizon, axis=1).astype(np.float32)
+        ``first (n, d)`` (:meth:`held_still`)."""
+        return np.repeat(self.held_still(first)[:, None], horizon, axis=1).astype(np.float32)
 
     def from_batch(self, batch: dict[str, jax.Array]) -> jax.Array:
         """Reward inputs ``(B, d)`` of a SAC batch (whose observations carry the absorbing flag)."""

@@ -79,8 +79,9 @@ class RankingData:
         self.train_rows = self.train_rows[:0]
         self.holdout_rows = self.holdout_rows[:0]
 
-    def add(self, trajectories: Sequence[np.ndarray], rng: np.random.Generator) -> None:
-        """Append agent trajectories, each ``(H, d)``, assigning their rows to train or holdout at random."""
+    def add(self, trajectories: Sequence[np.ndarray], rng: np.random.Generator, real_only: bool = False) -> None:
+        """Append agent trajectories, each ``(H, d)``, assigning their rows to train or holdout at random;
+        with ``real_only``, the rows that start in the absorbing state are not ranked at all."""
         if not trajectories:
             return
         new = np.stack(trajectories).astype(np.float32)
@@ -92,6 +93,8 @@ class RankingData:
         self.n_real_states += int(real.sum())
         idx, t = np.meshgrid(np.arange(first, len(self.agent)), np.arange(self.horizon), indexing="ij")
         rows = np.stack([idx.ravel(), t.ravel()], axis=1)
+        if real_only:
+            rows = rows[real.ravel()]
         held = rng.uniform(size=len(rows)) < self.holdout_fraction
         experts = rng.integers(0, len(self.expert), size=int(held.sum()))
         expert_steps = self._expert_steps(rng, rows[held, 1])
