@@ -28,8 +28,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-#: The method name given to ``rankgame expert`` runs: SAC on the task's true reward.
-SAC_TRUE_REWARD = "sac (true reward)"
+from rankgame.report import SAC_TRUE_REWARD, true_reward_curve
 
 
 @dataclass(frozen=True)
@@ -74,16 +73,8 @@ def read_run(folder: Path, root: Path) -> RunScores | None:
         return None
     if "normalized_score" in rows[0]:
         method, scores = config["method"], [float(row["normalized_score"]) for row in rows]
-    else:  # a rankgame expert run: normalize its true return with the shipped expert data
-        from rankgame.data.experts import load_shipped_expert, normalized_score
-
-        expert = load_shipped_expert(config["env"])
-        random_return = float(expert.metadata["random_return_mean"])
-        method = SAC_TRUE_REWARD
-        scores = [
-            float(normalized_score(float(row["eval_return"]), float(expert.returns.mean()), random_return))
-            for row in rows
-        ]
+    else:  # a rankgame expert run: its true return normalized with the shipped expert data
+        method, scores = SAC_TRUE_REWARD, true_reward_curve(folder, config["env"])[1]
     steps = tuple(int(row["env_steps"]) for row in rows)
     relative = folder.relative_to(root)
     variant = root.name if len(relative.parts) < 2 else f"{root.name}/{relative.parts[0]}"

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from conftest import assert_one_line_error, run_main
 
-from rankgame.report import find_run_folders, seed_kind, write_report
+from rankgame.report import SAC_TRUE_REWARD, find_run_folders, read_run, seed_kind, write_report
 from rankgame.stats import (
     iqm,
     mean_and_sample_std,
@@ -248,6 +248,24 @@ def test_variants_are_the_folders_that_hold_the_runs(tmp_path: Path) -> None:
     table = section(page.read_text(), "## Normalized score at 100k steps")
     for variant in ("default", "k-1", "nested/backward", "sweep/reward.lr=1e-4"):
         assert table_row(table, "rank-pal-auto", variant)[2] == "10.0 (1, tuning)"
+
+
+def test_a_rankgame_expert_run_is_the_sac_reference_normalized_with_the_shipped_expert(tmp_path: Path) -> None:
+    from rankgame.data.experts import load_shipped_expert
+
+    expert = load_shipped_expert("Hopper-v5")
+    top, bottom = float(expert.returns.mean()), float(expert.metadata["random_return_mean"])
+    folder = tmp_path / "sac-ref" / "Hopper-v5-s100"
+    folder.mkdir(parents=True)
+    config = {"command": "rankgame expert ...", "env": "Hopper-v5", "seed": 100, "steps": 20}
+    (folder / "config.json").write_text(json.dumps({**config, "trajectories": 1, "sac": {}}))
+    half = bottom + 0.5 * (top - bottom)
+    (folder / "metrics.csv").write_text(f"env_steps,eval_return\n10,{bottom}\n20,{half}\n")
+    run = read_run(folder, "sac-ref")
+    assert (run.method, run.seed, run.steps.tolist()) == (SAC_TRUE_REWARD, 100, [10, 20])
+    np.testing.assert_allclose(run.scores, [0.0, 50.0], atol=1e-6)
+    page = write_report([tmp_path / "sac-ref"], tmp_path / "out", n_boot=50).read_text()
+    assert table_row(section(page, "## Stability"), "Hopper-v5", SAC_TRUE_REWARD)[2] == "sac-ref"
 
 
 def test_bad_inputs_are_one_line_errors(capsys: pytest.CaptureFixture[str], archive: Path, tmp_path: Path) -> None:

@@ -24,6 +24,10 @@ Seeds: seeds of :data:`HELD_OUT_SEED` (100) and up are held-out seeds, run once 
 lower seeds are tuning seeds. Every cell and group says which it holds (``tuning``, ``held-out``, or
 ``mixed``).
 
+Runs of ``rankgame expert`` (SAC on the task's true reward, the reference a learned reward is measured
+against) are read too: their method is :data:`SAC_TRUE_REWARD`, and their ``eval_return`` is normalized
+with the task's shipped expert data, as ``rankgame train`` normalizes its own.
+
 Scores are the ``normalized_score`` column (0 random, 100 expert). A score "at 100k" is the
 evaluation logged at exactly 100000 environment steps; a run without one is left out of that cell.
 """
@@ -61,6 +65,10 @@ HELD_OUT_SEED = 100
 CONFIG_KEYS = ("command", "env", "method", "seed", "steps")
 #: The ``metrics.csv`` column the page reports.
 SCORE_COLUMN = "normalized_score"
+#: The method of a ``rankgame expert`` run: SAC on the task's true reward.
+SAC_TRUE_REWARD = "sac (true reward)"
+#: What a ``rankgame expert`` run's ``config.json`` records instead of a method.
+EXPERT_RUN_KEYS = ("trajectories", "sac")
 #: The success rate's column (Pen, Door), read for the claims.
 SUCCESS_COLUMN = "eval_success"
 #: The page's file name inside the output folder, and the figures' folder.
@@ -141,6 +149,20 @@ def find_run_folders(paths: Sequence[Path]) -> list[tuple[Path, str]]:
     return list(found.values())
 
 
+def true_reward_curve(folder: Path, env: str) -> tuple[list[int], list[float]]:
+    """Steps and normalized scores of a ``rankgame expert`` run: its ``eval_return`` normalized with the
+    shipped expert data of ``env`` (random 0, expert 100)."""
+    from rankgame.data.experts import load_shipped_expert, normalized_score, shipped_envs
+
+    if env not in shipped_envs():
+        raise RankGameError(f"{folder}: no shipped expert data of {env} to normalize its true returns with")
+    expert = load_shipped_expert(env)
+    steps, returns = read_curve(folder, "eval_return")
+    random_return = float(expert.metadata["random_return_mean"])
+    expert_return = float(expert.returns.mean())
+    return steps, [float(normalized_score(ret, expert_return, random_return)) for ret in returns]
+
+
 def read_run(folder: Path, variant: str) -> Run:
     """The :class:`Run` in ``folder`` (its ``config.json`` and the scores of its ``metrics.csv``)."""
     path = folder / "config.json"
@@ -150,6 +172,9 @@ def read_run(folder: Path, variant: str) -> Run:
         config = json.loads(path.read_text())
     except (OSError, json.JSONDecodeError) as exc:
         raise RankGameError(f"{path}: unreadable run settings ({exc})") from None
+    expert_run = isinstance(config, dict) and "method" not in config and all(key in config for key in EXPERT_RUN_KEYS)
+    if expert_run:
+        config = {**config, "method": SAC_TRUE_REWARD}
     missing = [key for key in CONFIG_KEYS if not isinstance(config, dict) or key not in config]
     if missing:
         raise RankGameError(f"{path} has no {', '.join(missing)} (a run of rankgame train records them)")
@@ -158,7 +183,7 @@ def read_run(folder: Path, variant: str) -> Run:
     except (TypeError, ValueError):
         raise RankGameError(f"{path}: seed and steps must be integers") from None
     env, method = str(config["env"]), str(config["method"])
-    steps, scores = read_curve(folder, SCORE_COLUMN)
+    steps, scores = true_reward_curve(folder, env) if expert_run else read_curve(folder, SCORE_COLUMN)
     try:
         success = dict(zip(*read_curve(folder, SUCCESS_COLUMN), strict=True))
     except RankGameError:  # a task without success
