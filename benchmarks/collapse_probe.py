@@ -212,12 +212,25 @@ def _read_probe(probe_csv: Path) -> dict[str, np.ndarray]:
     return {name: np.array([float(r[name]) for r in rows]) for name in PROBE_COLUMNS}
 
 
-def summarize_probe(probe_csv: Path, reach: float = 80.0, below: float = 50.0) -> dict[str, Any]:
+def collapse_kind(length: int, horizon: int, true_per_step: float, stand_per_step: float) -> str:
+    """What the probe episode of a collapsed evaluation did: ``fall`` (it ended before ``horizon``, the
+    longest probe episode of the run), ``stand`` (it lasted but earned less than ``stand_per_step`` true
+    reward per step: on Hopper-v5 and Walker2d-v5 the healthy bonus is 1) or ``other``."""
+    if length < horizon:
+        return "fall"
+    return "stand" if true_per_step < stand_per_step else "other"
+
+
+def summarize_probe(
+    probe_csv: Path, reach: float = 80.0, below: float = 50.0, stand_per_step: float = 1.2
+) -> dict[str, Any]:
     """The evaluations after first reaching ``reach`` that follow one at ``below`` or more: their steps,
-    whether they fell below ``below``, and the previous evaluation's ``reward_stand / reward_policy``."""
+    whether they fell below ``below``, the previous evaluation's ``reward_stand / reward_policy``, and
+    for the collapses what the probe episode did (:func:`collapse_kind`)."""
     column = _read_probe(probe_csv)
     score = column["normalized_score"]
     reached = np.flatnonzero(score >= reach)
+    horizon = int(column["policy_length"].max())
     rows = []
     for i in range(int(reached[0]) + 1 if len(reached) else len(score), len(score)):
         if score[i - 1] < below:
@@ -233,10 +246,16 @@ def summarize_probe(probe_csv: Path, reach: float = 80.0, below: float = 50.0) -
             }
         )
     ratios = {flag: [r["stand_over_policy"] for r in rows if r["collapsed"] == flag] for flag in (True, False)}
+    kinds = [
+        collapse_kind(r["policy_length"], horizon, r["policy_true_per_step"], stand_per_step)
+        for r in rows
+        if r["collapsed"]
+    ]
     return {
         "probe": str(probe_csv),
         "collapses": len(ratios[True]),
         "others": len(ratios[False]),
+        "collapse_kinds": {kind: kinds.count(kind) for kind in ("stand", "fall", "other")},
         "stand_over_policy_before_collapses": ratios[True],
         "stand_over_policy_before_others": ratios[False],
         "rows": rows,

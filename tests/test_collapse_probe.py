@@ -50,23 +50,32 @@ def test_methods_without_a_sac_game_are_refused(tmp_path: Path, capsys: pytest.C
 def test_the_summary_pairs_each_evaluation_after_reaching_80_with_the_reward_before_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    # Scores 40, 85, 30 (a collapse), 90, 95: the evaluation at 30k follows 85 (stand / policy = 6 / 4),
-    # 40k follows a collapse and is left out, 50k follows 90 (stand / policy = 2 / 8).
+    # Scores 40, 85, 30 (a collapse), 90, 95, 20 (a collapse): the evaluation at 30k follows 85 (stand /
+    # policy = 6 / 4) and its probe episode lasts 1000 steps at the healthy bonus (a stand); 40k follows
+    # a collapse and is left out; 50k follows 90 (2 / 8); 60k follows 95 (1 / 1) and its probe episode
+    # ends after 300 steps (a fall).
     path = tmp_path / "probe.csv"
-    scores, stand, policy = [40, 85, 30, 90, 95], [1, 6, 1, 2, 1], [1, 4, 1, 8, 1]
+    scores, stand, policy = [40, 85, 30, 90, 95, 20], [1, 6, 1, 2, 1, 1], [1, 4, 1, 8, 1, 1]
+    lengths, per_step = [1000, 1000, 1000, 1000, 1000, 300], [3.0, 3.0, 1.0, 3.0, 3.0, 2.5]
     with path.open("w", newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(PROBE_COLUMNS)
-        for i, (score, r_stand, r_policy) in enumerate(zip(scores, stand, policy, strict=True)):
+        for i, score in enumerate(scores):
             values = dict.fromkeys(PROBE_COLUMNS, 0.0)
             values.update(
-                env_steps=10000 * (i + 1), normalized_score=score, reward_stand=r_stand, reward_policy=r_policy
+                env_steps=10000 * (i + 1),
+                normalized_score=score,
+                reward_stand=stand[i],
+                reward_policy=policy[i],
+                policy_length=lengths[i],
+                policy_true_per_step=per_step[i],
             )
             writer.writerow([values[name] for name in PROBE_COLUMNS])
     assert main(["--summary", str(path)]) == 0
     (summary,) = json.loads(capsys.readouterr().out)
-    assert summary["collapses"] == 1 and summary["others"] == 1
-    assert summary["stand_over_policy_before_collapses"] == [1.5]
+    assert summary["collapses"] == 2 and summary["others"] == 1
+    assert summary["stand_over_policy_before_collapses"] == [1.5, 1.0]
     assert summary["stand_over_policy_before_others"] == [0.25]
-    assert [r["env_steps"] for r in summary["rows"]] == [30000, 50000]
+    assert summary["collapse_kinds"] == {"stand": 1, "fall": 1, "other": 0}
+    assert [r["env_steps"] for r in summary["rows"]] == [30000, 50000, 60000]
     assert main(["--summary", str(tmp_path / "missing.csv")]) == 1
