@@ -62,17 +62,17 @@ class InputLayout:
         """Reward inputs ``(..., d)`` of staying one step in the state each input ``(..., d)`` starts in:
         the state itself, the self-transition ``(s, s)``, or ``(s, 0)``, the action at the middle of the
         normalized box (zero torque on the MuJoCo tasks)."""
-        state = inputs[..., : self.obs_dim + 1]
+        state = inputs[..., : self.obs_dim + 1].astype(np.float32)
         if self.kind == "ss":
-            return np.concatenate([state, state], axis=-1).astype(np.float32)
+            return np.concatenate([state, state], axis=-1)
         if self.kind == "sa":
-            return np.concatenate([state, np.zeros((*state.shape[:-1], self.act_dim), state.dtype)], axis=-1)
-        return state.astype(np.float32)
+            return np.concatenate([state, np.zeros((*state.shape[:-1], self.act_dim), np.float32)], axis=-1)
+        return state
 
     def standing_still(self, first: np.ndarray, horizon: int) -> np.ndarray:
         """Reward inputs ``(n, H, d)`` of staying for ``horizon`` steps in the first state of each input
         ``first (n, d)`` (:meth:`held_still`)."""
-        return np.repeat(self.held_still(first)[:, None], horizon, axis=1).astype(np.float32)
+        return np.repeat(self.held_still(first)[:, None], horizon, axis=1)
 
     def from_batch(self, batch: dict[str, jax.Array]) -> jax.Array:
         """Reward inputs ``(B, d)`` of a SAC batch (whose observations carry the absorbing flag)."""
