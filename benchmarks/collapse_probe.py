@@ -221,6 +221,17 @@ def collapse_kind(length: int, horizon: int, true_per_step: float, stand_per_ste
     return "stand" if true_per_step < stand_per_step else "other"
 
 
+def learned_return_ratio(column: dict[str, np.ndarray], horizon: int) -> np.ndarray:
+    """Per evaluation ``(E,)``: the learned return of the probe episode over ``horizon`` steps (the
+    absorbing state's reward after an early end) as a share of the expert's under the same reward,
+    ``(r_policy L + r_absorbing (H - L)) / (r_expert H)``; NaN where the expert's reward is not positive.
+    It uses no true reward, so the evaluation where it is largest is a policy a user could select."""
+    length = column["policy_length"]
+    learned = column["reward_policy"] * length + column["reward_absorbing"] * (horizon - length)
+    expert = column["reward_expert"] * horizon
+    return np.where(expert > 0, learned / np.where(expert > 0, expert, 1.0), np.nan)
+
+
 def summarize_probe(
     probe_csv: Path, reach: float = 80.0, below: float = 50.0, stand_per_step: float = 1.2
 ) -> dict[str, Any]:
@@ -251,8 +262,16 @@ def summarize_probe(
         for r in rows
         if r["collapsed"]
     ]
+    ratio = learned_return_ratio(column, horizon)
+    pick = len(ratio) - 1 - int(np.nanargmax(ratio[::-1]))  # the latest of the best
     return {
         "probe": str(probe_csv),
+        "final_score": round(float(score[-1]), 1),
+        "selected": {
+            "env_steps": int(column["env_steps"][pick]),
+            "normalized_score": round(float(score[pick]), 1),
+            "learned_return_ratio": round(float(ratio[pick]), 3),
+        },
         "collapses": len(ratios[True]),
         "others": len(ratios[False]),
         "collapse_kinds": {kind: kinds.count(kind) for kind in ("stand", "fall", "other")},

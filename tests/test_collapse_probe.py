@@ -53,7 +53,9 @@ def test_the_summary_pairs_each_evaluation_after_reaching_80_with_the_reward_bef
     # Scores 40, 85, 30 (a collapse), 90, 95, 20 (a collapse): the evaluation at 30k follows 85 (stand /
     # policy = 6 / 4) and its probe episode lasts 1000 steps at the healthy bonus (a stand); 40k follows
     # a collapse and is left out; 50k follows 90 (2 / 8); 60k follows 95 (1 / 1) and its probe episode
-    # ends after 300 steps (a fall).
+    # ends after 300 steps (a fall). The learned reward of the absorbing state is 0 and the expert's 2, so
+    # the learned return ratio (r_policy L + 0) / (2 H) is largest, 8 / 2, at 40k: the selected policy
+    # (at 60k it is 1 x 300 / 2000: the fall is paid the absorbing state's 0 for the rest).
     path = tmp_path / "probe.csv"
     scores, stand, policy = [40, 85, 30, 90, 95, 20], [1, 6, 1, 2, 1, 1], [1, 4, 1, 8, 1, 1]
     lengths, per_step = [1000, 1000, 1000, 1000, 1000, 300], [3.0, 3.0, 1.0, 3.0, 3.0, 2.5]
@@ -69,6 +71,7 @@ def test_the_summary_pairs_each_evaluation_after_reaching_80_with_the_reward_bef
                 reward_policy=policy[i],
                 policy_length=lengths[i],
                 policy_true_per_step=per_step[i],
+                reward_expert=2.0,
             )
             writer.writerow([values[name] for name in PROBE_COLUMNS])
     assert main(["--summary", str(path)]) == 0
@@ -78,4 +81,6 @@ def test_the_summary_pairs_each_evaluation_after_reaching_80_with_the_reward_bef
     assert summary["stand_over_policy_before_others"] == [0.25]
     assert summary["collapse_kinds"] == {"stand": 1, "fall": 1, "other": 0}
     assert [r["env_steps"] for r in summary["rows"]] == [30000, 50000, 60000]
+    assert summary["final_score"] == 20.0
+    assert summary["selected"] == {"env_steps": 40000, "normalized_score": 90.0, "learned_return_ratio": 4.0}
     assert main(["--summary", str(tmp_path / "missing.csv")]) == 1
