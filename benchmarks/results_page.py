@@ -23,6 +23,7 @@ ARCHIVES = (
     "sample-efficiency",  # the paper's settings, seeds 0-2
     "stability-heldout-hopper-pal",  # the paper's settings, held-out seeds
     "stability-heldout-hopper-pal-still",  # the same with standing still ranked (--rankings.still-weight 0.2)
+    "stability-heldout-hopper-pal-tuned",  # --recipe tuned (k 1, r_max 1, patience 1), held-out seeds
     "stability-sac-true-reward",  # SAC on the true reward (rankgame expert), the stability reference
     "baselines-lfo",  # GAIfO, DACfO, BCO, f-IRL, OPOLO (LfO, one expert trajectory)
     "lfd-hopper",  # RANK-PAL(auto) and RANK-RAL(auto) from demonstrations (LfD, one expert trajectory)
