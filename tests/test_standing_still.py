@@ -99,6 +99,23 @@ def test_expert_poses_held_still_leave_out_the_absorbing_padding() -> None:
     assert sorted(rankings.still.train_rows[:, 1].tolist()) == [0, 1]  # (s, s) at steps 0 and 1 only
 
 
+@pytest.mark.parametrize("poses", ["initial", "expert"])
+def test_a_changed_expert_brings_its_own_poses_to_stand_still(poses: str) -> None:
+    layout = InputLayout(1, 0, "ss")
+    old = layout.episode(np.array([[0.0], [1.0], [2.0]], np.float32), np.zeros((2, 0)), False, 2)[None]
+    new = layout.episode(np.array([[5.0], [6.0], [7.0]], np.float32), np.zeros((2, 0)), False, 2)[None]
+    config = RankingsConfig(still_weight=0.2, still_poses=poses)
+    rankings = build_rankings("auto", config, old, layout, 0.0, LOSSES["regression"])
+    assert isinstance(rankings, Rankings)
+    rankings.replace_expert(new, np.random.default_rng(0))
+    assert rankings.still is not None
+    np.testing.assert_array_equal(rankings.still.expert, new)
+    # the states held still are the new expert's: (5, 5) twice from its start, or (5, 5) and (6, 6)
+    held = rankings.still.agent[0, :, [0, 2]].T
+    expected = [[5.0, 5.0], [5.0, 5.0]] if poses == "initial" else [[5.0, 5.0], [6.0, 6.0]]
+    np.testing.assert_array_equal(held, expected)
+
+
 def test_standing_still_survives_pal_clearing_the_agent_data() -> None:
     rankings, _ = _one_hot_rankings(0.3, 10)
     rankings.data.clear()

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Literal
 
 import jax
@@ -183,6 +184,8 @@ class Rankings(_StoredInData):
         still: standing still ranked below the expert, with the same mixtures (its agent data is fixed),
             else None.
         still_weight: ``w_s``, the share of the agent-vs-expert loss that ``still`` gets.
+        still_of: builds ``still`` from expert inputs ``(M, H, d)`` (its poses come from the expert), so
+            that a changed expert gets its own; None without ``still``.
     """
 
     data: RankingData
@@ -191,6 +194,7 @@ class Rankings(_StoredInData):
     penalty_points: bool = False
     still: RankingData | None = None
     still_weight: float = 0.0
+    still_of: Callable[[np.ndarray], RankingData] | None = None
 
     def sample(self, rng: np.random.Generator, n_batches: int, batch_size: int) -> tuple[Any, ...]:
         """``n_batches`` training batches: inputs ``(n, B, d)``, targets ``(n, B)``, is-expert flags
@@ -204,10 +208,11 @@ class Rankings(_StoredInData):
         return inputs, targets, is_expert, offline, points, still
 
     def replace_expert(self, expert: np.ndarray, rng: np.random.Generator) -> None:
-        """Rank below other expert inputs ``(M', H, d)`` from now on (a changed intent), standing still too."""
+        """Rank below other expert inputs ``(M', H, d)`` from now on (a changed intent); standing still is
+        rebuilt from the new expert's poses."""
         self.data.replace_expert(expert, rng)
-        if self.still is not None:
-            self.still.replace_expert(expert, rng)
+        if self.still_of is not None:
+            self.still = self.still_of(expert)
 
     def objective(self, raw_fn: RawRewardFn, loss: RankingLoss, r_max: float, penalty: float = 0.0) -> Objective:
         """The loss of one batch: ``loss`` on the agent-vs-expert chain (with ``still``, a share
@@ -360,6 +365,23 @@ class MarginalRankings(_StoredInData):
         self.ratio_state = unflatten_tree("ratio", arrays, self.ratio_state)
 
 
+def _still_rankings(
+    poses: StillPoses,
+    lambdas: np.ndarray,
+    targets: np.ndarray,
+    layout: InputLayout,
+    time_aligned: bool,
+    expert: np.ndarray,
+) -> RankingData:
+    """Standing still ranked below ``expert`` ``(M, H, d)`` with the mixtures ``lambdas (G,)`` and their
+    ``targets (G,)``: the expert's initial poses held for the horizon, or (``expert``) every expert pose
+    held still; absorbing padding is not ranked."""
+    still = RankingData(expert, lambdas, targets, 0.0, layout, time_aligned=time_aligned)
+    held = layout.standing_still(expert[:, 0], expert.shape[1]) if poses == "initial" else layout.held_still(expert)
+    still.add(list(held), np.random.default_rng(0), real_only=True)
+    return still
+
+
 def build_rankings(
     source: RankingSource,
     config: RankingsConfig,
@@ -407,20 +429,17 @@ def build_rankings(
     lambdas = lambda_grid(config.interpolations) if source == "auto" else np.array([0.0, 1.0])
     time_aligned = mixup == "trajectory"
     data = RankingData(expert, lambdas, config.targets(lambdas), holdout_fraction, layout, time_aligned=time_aligned)
-    still = None
+    still_of = None
     if config.still_weight > 0.0:
         if not loss.regresses_targets:
             raise ValueError("rankings still_weight needs a loss that regresses targets")
         if config.still_poses == "expert" and layout.kind != "ss":
             raise ValueError("rankings still_poses expert needs an (s, s') reward")
-        still = RankingData(expert, lambdas, config.targets(lambdas), 0.0, layout, time_aligned=time_aligned)
-        if config.still_poses == "initial":
-            poses = layout.standing_still(expert[:, 0], expert.shape[1])
-        else:
-            poses = layout.held_still(expert)
-        still.add(list(poses), np.random.default_rng(0), real_only=True)
+        still_of = partial(_still_rankings, config.still_poses, lambdas, config.targets(lambdas), layout, time_aligned)
+    still = None if still_of is None else still_of(expert)
+    parts = {"still": still, "still_weight": config.still_weight, "still_of": still_of}
     if preferences is None:
-        return Rankings(data, penalty_points=loss.gradient_penalty, still=still, still_weight=config.still_weight)
+        return Rankings(data, penalty_points=loss.gradient_penalty, **parts)
     if source == "pref" and not loss.regresses_targets:
         raise ValueError("pref rankings need a loss that regresses targets")
     positions = np.arange(len(preferences) + 1) / len(preferences)
@@ -429,4 +448,4 @@ def build_rankings(
     )
     if source == "offline":
         return PairwiseRankings(data, offline, config.snippet_length)
-    return Rankings(data, offline, config.pref_weight, loss.gradient_penalty, still, config.still_weight)
+    return Rankings(data, offline, config.pref_weight, loss.gradient_penalty, **parts)
