@@ -119,6 +119,7 @@ def test_a_checkpoint_restores_every_piece_of_the_game(toy_expert_file: Path, tm
     game = build_game(cfg)
     for step in range(1, 4 * game.n_pol + 1):
         game.step(step)
+    game.selection.best = 0.7
     restored = build_game(cfg)
     restored.restore(*game.checkpoint())
 
@@ -134,6 +135,7 @@ def test_a_checkpoint_restores_every_piece_of_the_game(toy_expert_file: Path, tm
     assert restored.rng.bit_generator.state == game.rng.bit_generator.state
     assert restored.learner.rng.bit_generator.state == game.learner.rng.bit_generator.state
     np.testing.assert_equal(restored.reward_metrics, game.reward_metrics)  # NaN equals NaN here
+    assert restored.selection.best == 0.7
 
 
 def test_a_run_ending_inside_an_iteration_checkpoints_its_last_step(toy_expert_file: Path, tmp_path: Path) -> None:

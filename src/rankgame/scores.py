@@ -14,8 +14,8 @@ import gymnasium as gym
 import numpy as np
 
 from rankgame.data.experts import normalized_score
-from rankgame.data.trajectories import TrajectoryFile
-from rankgame.envs.rollout import PolicyFn, episode_returns, evaluate_episodes, random_policy, success_postfix
+from rankgame.data.trajectories import Trajectory, TrajectoryFile
+from rankgame.envs.rollout import PolicyFn, episode_returns, random_policy, run_episodes, success_postfix, success_rate
 
 #: The first columns of every ``rankgame train`` run's ``metrics.csv``: the harness's step count and
 #: clock, then the evaluation row of :meth:`ScoreScale.evaluate`.
@@ -45,15 +45,19 @@ class ScoreScale:
         return scale
 
     def evaluate(self, eval_env: gym.Env, policy: PolicyFn, episodes: int, seed: int) -> dict[str, float]:
-        """``policy``'s mean true return over ``episodes`` episodes reset from ``seed + i``, its normalized
-        score and, for tasks that report success, its success rate (``eval_return``, ``normalized_score``,
-        ``eval_success``)."""
-        returns, success = evaluate_episodes(eval_env, policy, episodes, seed)
-        mean = float(returns.mean())
+        """:meth:`score` of ``policy``'s ``episodes`` episodes reset from ``seed + i``."""
+        return self.score(*run_episodes(eval_env, policy, episodes, seed))
+
+    def score(self, episodes: list[Trajectory], success_steps: list[int | None]) -> dict[str, float]:
+        """The mean true return of recorded episodes (:func:`~rankgame.envs.rollout.run_episodes`), its
+        normalized score and, for tasks that report success, the success rate (``eval_return``,
+        ``normalized_score``, ``eval_success``)."""
+        mean = float(np.mean([episode.ret for episode in episodes]))
         row = {
             "eval_return": mean,
             "normalized_score": float(normalized_score(mean, self.expert_return, self.random_return)),
         }
+        success = success_rate(success_steps)
         return row if success is None else {**row, "eval_success": success}
 
 

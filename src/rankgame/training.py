@@ -23,6 +23,7 @@ from rankgame.envs.make import EnvSpec, env_spec, make_env
 from rankgame.game.data import DataSource, resolve_expert, resolve_preferences
 from rankgame.game.loop import RankingGame
 from rankgame.game.methods import METHODS
+from rankgame.game.selection import SELECTED_POLICY_NAME, selected_evaluation
 from rankgame.game.switch import plan_switch
 from rankgame.run import Callback, RunSettings, Trainer, open_run, run
 
@@ -96,7 +97,9 @@ def train(
         command: the command line recorded in ``config.json`` and saved policies (default: ``sys.argv``).
     Returns:
         ``env``, ``method``, ``steps``, ``env_steps`` (reached), ``stopped_early``, ``out`` and the last
-        evaluation's ``eval_return``, ``normalized_score`` (and ``eval_success`` where the task reports it).
+        evaluation's ``eval_return``, ``normalized_score`` (and ``eval_success`` where the task reports it);
+        for the game methods also ``selected_policy``: the policy chosen by its learned return
+        (:mod:`rankgame.game.selection`), its file, step, criterion and normalized score.
     Raises:
         RankGameError: a one-line reason for bad settings or data, a run that produced a non-finite
             value, or one stopped by a signal (:class:`~rankgame.errors.RunInterrupted`).
@@ -127,7 +130,7 @@ def train(
     trainer.command = command or shlex.join(sys.argv)
     row = run(trainer, settings, resumed, as_json, columns, trainer.command, callback)
     keys = ("eval_return", "normalized_score", "eval_success")
-    return {
+    summary = {
         "env": trainer.env_id,
         "method": config.method,
         "steps": config.steps,
@@ -136,3 +139,12 @@ def train(
         "out": str(config.out),
         **{key: row[key] for key in keys if key in row},
     }
+    selected = selected_evaluation(config.out / "metrics.csv", since=config.switch.at or 0)
+    if selected is not None:
+        summary["selected_policy"] = {
+            "path": str(config.out / SELECTED_POLICY_NAME),
+            "env_steps": selected.env_steps,
+            "learned_return": selected.learned_return,
+            "normalized_score": selected.normalized_score,
+        }
+    return summary

@@ -20,15 +20,13 @@ from rankgame.checkpoint import flatten_tree, unflatten_tree
 from rankgame.config import TrainConfig
 from rankgame.data.trajectories import Trajectory, TrajectoryFile
 from rankgame.envs.make import env_spec, make_env
-from rankgame.envs.rollout import (
-    EVAL_SEED_OFFSET,
-    to_normalized_action,
-)
+from rankgame.envs.rollout import EVAL_SEED_OFFSET, run_episodes, to_normalized_action
 from rankgame.errors import NonFiniteError, RankGameError
 from rankgame.game.data import Preferences
 from rankgame.game.leaders import make_leader
 from rankgame.game.methods import METHODS
 from rankgame.game.rankings import build_rankings
+from rankgame.game.selection import SELECTED_POLICY_NAME, SELECTION_COLUMN, PolicySelection, learned_return_ratio
 from rankgame.game.switch import TaskSwitch
 from rankgame.policy.players import iteration_steps, make_policy_player
 from rankgame.reward.inputs import InputLayout, parse_obs_columns
@@ -42,6 +40,7 @@ FINISHED_KEY = "game/finished"
 
 LOG_COLUMNS = (
     *EVAL_COLUMNS,
+    SELECTION_COLUMN,
     "reward/train_loss",
     "reward/holdout_loss",
     "reward/agent",
@@ -137,6 +136,7 @@ class RankingGame:
         self.finished: list[np.ndarray] = []
         self.reward_metrics: dict[str, float] = {}
         self.policy_metrics: dict[str, float] = {}
+        self.selection = PolicySelection()
 
     @property
     def env_steps(self) -> int:
@@ -243,16 +243,23 @@ class RankingGame:
         if self.switch.expert is not None:
             self.rankings.replace_expert(self._switch_inputs, self.rng)
             self.scale = ScoreScale.of(self.switch.expert, self.eval_env, self.cfg.seed)
+        self.selection.reset()
 
     # --- what the run harness asks ------------------------------------------------------------
     def can_checkpoint(self, step: int) -> bool:
         return step % self.n_pol == 0
 
     def evaluate(self) -> dict[str, float]:
-        """The deterministic policy's evaluation row (:meth:`~rankgame.scores.ScoreScale.evaluate`)."""
-        return self.scale.evaluate(
-            self.eval_env, self.learner.policy(), self.cfg.eval_episodes, self.cfg.seed + EVAL_SEED_OFFSET
+        """The deterministic policy's evaluation row (:meth:`~rankgame.scores.ScoreScale.score`) and the
+        learned return of its episodes as a share of the expert's (:mod:`rankgame.game.selection`)."""
+        seed = self.cfg.seed + EVAL_SEED_OFFSET
+        episodes, success_steps = run_episodes(self.eval_env, self.learner.policy(), self.cfg.eval_episodes, seed)
+        params, dim = self.reward_state.params, self.layout.dim
+        ratio = learned_return_ratio(
+            self.player.mean_reward(params, self._inputs(episodes, "evaluation episodes").reshape(-1, dim)),
+            self.player.mean_reward(params, self.rankings.data.expert.reshape(-1, dim)),
         )
+        return {**self.scale.score(episodes, success_steps), SELECTION_COLUMN: ratio}
 
     def training_metrics(self) -> dict[str, float]:
         return {**self.reward_metrics, **self.policy_metrics}
@@ -262,15 +269,18 @@ class RankingGame:
 
     def save_policies(self, out: Path, step: int, row: dict[str, float]) -> None:
         """Write the current actor for ``rankgame evaluate``, marked as one that reads the absorbing flag
-        the game appends to observations."""
-        self.learner.save_policy(
-            out / POLICY_NAME,
-            self.env_id,
-            absorbing_flag=True,
-            command=self.command,
-            env_steps=step,
-            eval_return=row["eval_return"],
-        )
+        the game appends to observations, and again as the selected policy when its learned return is
+        the best so far (:mod:`rankgame.game.selection`)."""
+        names = [POLICY_NAME] + ([SELECTED_POLICY_NAME] if self.selection.improves(row[SELECTION_COLUMN]) else [])
+        for name in names:
+            self.learner.save_policy(
+                out / name,
+                self.env_id,
+                absorbing_flag=True,
+                command=self.command,
+                env_steps=step,
+                eval_return=row["eval_return"],
+            )
 
     def checkpoint(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         learner_meta, learner_arrays = self.learner.checkpoint()
@@ -282,6 +292,7 @@ class RankingGame:
             "game_rng": self.rng.bit_generator.state,
             "reward_metrics": self.reward_metrics,
             "reward_spec": self.reward_spec(),
+            "selection_best": self.selection.best,
         }
         arrays = {
             **learner_arrays,
@@ -301,6 +312,7 @@ class RankingGame:
         self.finished = list(arrays[FINISHED_KEY])
         self.rng.bit_generator.state = metadata["game_rng"]
         self.reward_metrics = metadata["reward_metrics"]
+        self.selection.best = metadata.get("selection_best")  # absent from checkpoints older than selection
 
     def reward_spec(self) -> dict[str, Any]:
         """What rebuilds the learned reward outside the game (:mod:`rankgame.reward.export`)."""
