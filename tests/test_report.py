@@ -213,6 +213,7 @@ def test_report_tables_match_the_scores_worked_out_by_hand(archive: Path, tmp_pa
         "0",
         "1/2 = 50.0%",
         f"{(90 + 100 + 40) / 3:.1f}",
+        "-",  # these runs log no selection criterion
         f"{(90 + 100 + 90) / 3:.1f}",
         "300k",
     ]
@@ -248,6 +249,26 @@ def test_variants_are_the_folders_that_hold_the_runs(tmp_path: Path) -> None:
     table = section(page.read_text(), "## Normalized score at 100k steps")
     for variant in ("default", "k-1", "nested/backward", "sweep/reward.lr=1e-4"):
         assert table_row(table, "rank-pal-auto", variant)[2] == "10.0 (1, tuning)"
+
+
+def test_the_stability_table_shows_the_score_of_the_policy_each_run_selected(tmp_path: Path) -> None:
+    criteria = {0: ("0.2", "0.9", "0.5"), 1: ("0.3", "nan", "0.7"), 2: None}  # s2 selects nothing
+    for seed, ratios in criteria.items():
+        folder = make_run(
+            tmp_path / "sel" / f"Hopper-v5__rank-pal-auto__s{seed}",
+            "Hopper-v5",
+            "rank-pal-auto",
+            seed,
+            SCORES[("Hopper-v5", "rank-pal-auto", seed)],
+        )
+        if ratios is not None:
+            lines = (folder / "metrics.csv").read_text().splitlines()
+            rows = [f"{line},{ratio}" for line, ratio in zip(lines[1:], ratios, strict=True)]
+            (folder / "metrics.csv").write_text("\n".join([lines[0] + ",selection/learned_return", *rows]) + "\n")
+    page = write_report([tmp_path / "sel"], tmp_path / "out", n_boot=50).read_text()
+    row = table_row(section(page, "## Stability"), "Hopper-v5", "rank-pal-auto", "sel")
+    # s0 selects its 200k evaluation (85), s1 its 300k one (100)
+    assert row[7] == f"{(85 + 100) / 2:.1f} (2 runs)"
 
 
 def test_a_rankgame_expert_run_is_the_sac_reference_normalized_with_the_shipped_expert(tmp_path: Path) -> None:

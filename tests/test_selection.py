@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import sys
 from pathlib import Path
 
 import pytest
@@ -20,6 +21,10 @@ from rankgame.game.selection import (
     selected_evaluation,
 )
 from rankgame.policy.io import load_policy
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+import selection as selection_benchmark  # noqa: E402
 
 
 def test_the_ratio_is_the_policys_learned_return_over_the_experts_and_undefined_without_a_positive_expert() -> None:
@@ -54,15 +59,19 @@ def _write_metrics(path: Path, rows: list[tuple[int, str, float]]) -> Path:
 
 def test_the_selected_evaluation_is_read_back_from_metrics(tmp_path: Path) -> None:
     rows = [(1000, "0.1", -50.0), (2000, "0.9", 95.0), (3000, "", 10.0), (4000, "0.9", 90.0), (5000, "0.3", 20.0)]
-    metrics = _write_metrics(tmp_path / "metrics.csv", rows)
-    selected = selected_evaluation(metrics)
+    _write_metrics(tmp_path / "metrics.csv", rows)
+    selected = selected_evaluation(tmp_path)
     assert selected is not None
     assert (selected.env_steps, selected.learned_return, selected.normalized_score) == (4000, 0.9, 90.0)
-    after_switch = selected_evaluation(metrics, since=4000)
+    after_switch = selected_evaluation(tmp_path, since=4000)
     assert after_switch is not None and after_switch.env_steps == 5000
-    assert selected_evaluation(_write_metrics(tmp_path / "none.csv", [(1000, "", 3.0)])) is None
-    (tmp_path / "old.csv").write_text("env_steps,normalized_score\n1000,3.0\n")
-    assert selected_evaluation(tmp_path / "old.csv") is None
+    for name, text in [("undefined", None), ("old", "env_steps,normalized_score\n1000,3.0\n")]:
+        (tmp_path / name).mkdir()
+        if text is None:
+            _write_metrics(tmp_path / name / "metrics.csv", [(1000, "", 3.0)])
+        else:
+            (tmp_path / name / "metrics.csv").write_text(text)
+        assert selected_evaluation(tmp_path / name) is None
 
 
 def test_a_toy_run_hands_over_the_policy_its_learned_reward_rates_best(
@@ -86,3 +95,12 @@ def test_a_toy_run_hands_over_the_policy_its_learned_reward_rates_best(
         EvaluateConfig(policy=out / SELECTED_POLICY_NAME, episodes=10, seed=777, expert=toy_expert_file)
     )
     assert fresh["normalized_score"] > 50.0, (fresh, rows)
+
+    # The benchmark scores both actors on fresh episodes, the selected one exactly as evaluate does.
+    report = tmp_path / "fresh.json"
+    assert selection_benchmark.main([str(out), "--episodes", "10", "--seed", "777", "--out", str(report)]) == 0
+    result = json.loads(report.read_text())
+    assert result["runs"][0]["selected"]["fresh_score"] == fresh["normalized_score"]
+    assert result["runs"][0]["selected"]["env_steps"] == summary["env_steps"]
+    assert result["aggregate"]["n"] == 1 and result["aggregate"]["selected"]["below"] == 0
+    assert selection_benchmark.main([str(tmp_path / "missing")]) == 1

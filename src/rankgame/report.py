@@ -49,6 +49,7 @@ from rankgame.atomic import atomic_write_bytes
 from rankgame.claims import CLAIMS, Metric, Side, judge
 from rankgame.data.published import RELEASED_CURVES, TABLE1
 from rankgame.errors import RankGameError
+from rankgame.game.selection import selected_evaluation
 from rankgame.plot import read_curve
 from rankgame.stats import (
     Interval,
@@ -95,6 +96,9 @@ class Run:
     """Normalized score of each evaluation ``(E,)``."""
     success: dict[int, float] = field(default_factory=dict, repr=False)
     """Success rate by environment step, on tasks that report one (``eval_success``)."""
+    selected: float | None = None
+    """Score of the evaluation whose policy the run selected by its learned reward
+    (:mod:`rankgame.game.selection`); None for runs that select none."""
 
     def score_at(self, step: int) -> float | None:
         """The score of the evaluation logged at exactly ``step`` environment steps; None if none was."""
@@ -205,7 +209,16 @@ def read_run(folder: Path, variant: str) -> Run:
         steps=np.asarray(steps, np.int64)[order],
         scores=np.asarray(scores, np.float64)[order],
         success=success,
+        selected=_selected_score(folder, config),
     )
+
+
+def _selected_score(folder: Path, config: dict[str, Any]) -> float | None:
+    """The score of the run's selected evaluation (after its switch, if any), or None."""
+    switch = config.get("switch")
+    since = int(switch.get("at") or 0) if isinstance(switch, dict) else 0
+    selected = selected_evaluation(folder, since)
+    return None if selected is None else selected.normalized_score
 
 
 def load_runs(paths: Sequence[Path]) -> list[Run]:
@@ -328,6 +341,16 @@ class Stability:
     """Mean over the runs of each run's last evaluation."""
     best: float
     """Mean over the runs of each run's best evaluation."""
+    selected: tuple[float, ...] = ()
+    """Score of each run's selected evaluation, for the runs that select one."""
+
+    @property
+    def selected_text(self) -> str:
+        """Mean of :attr:`selected`, with the count of runs when not every run selects; ``-`` for none."""
+        if not self.selected:
+            return "-"
+        mean = _num(float(np.mean(self.selected)))
+        return mean if len(self.selected) == self.runs else f"{mean} ({len(self.selected)} runs)"
 
     @property
     def share_text(self) -> str:
@@ -346,6 +369,7 @@ def stability(runs: Sequence[Run], reach: float = 80.0, below: float = 50.0) -> 
         collapsed=sum(c[1] for c in reached),
         final=float(np.mean([run.scores[-1] for run in runs])),
         best=float(np.mean([run.scores.max() for run in runs])),
+        selected=tuple(run.selected for run in runs if run.selected is not None),
     )
 
 
@@ -688,7 +712,8 @@ def build_page(
         "",
         f"After a run first reaches {reach:g}, the share of its later evaluations below {below:g}, pooled over "
         f"the group's runs that reached {reach:g}; final and best are means over the group's runs of each run's "
-        "last and best evaluation.",
+        "last and best evaluation, selected the mean of the evaluations whose policy each run kept as "
+        "`selected_policy.msgpack`, chosen by its learned reward alone (no true reward).",
         "",
     )
     stability_body = []
@@ -706,6 +731,7 @@ def build_page(
                 f"{len(result.never_reached)}" + (f" ({never})" if never else ""),
                 result.share_text,
                 _num(result.final),
+                result.selected_text,
                 _num(result.best),
                 reached_at,
             ]
@@ -718,6 +744,7 @@ def build_page(
         f"never reached {reach:g}",
         f"later evaluations below {below:g}",
         "final (mean)",
+        "selected (mean)",
         "best (mean)",
         "last step",
     ]

@@ -139,7 +139,7 @@ def train(
         "out": str(config.out),
         **{key: row[key] for key in keys if key in row},
     }
-    selected = selected_evaluation(config.out / "metrics.csv", since=config.switch.at or 0)
+    selected = selected_evaluation(config.out, since=config.switch.at or 0)
     if selected is not None:
         summary["selected_policy"] = {
             "path": str(config.out / SELECTED_POLICY_NAME),

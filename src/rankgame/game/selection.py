@@ -19,12 +19,12 @@ lie in ``[0, k]``); elsewhere it is NaN and no policy is selected at that evalua
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
+from rankgame.errors import RankGameError
+from rankgame.plot import read_curve
 
 #: The selected actor in a run folder (``rankgame evaluate --policy RUN/selected_policy.msgpack``).
 SELECTED_POLICY_NAME = "selected_policy.msgpack"
@@ -69,14 +69,16 @@ class SelectedEvaluation:
     normalized_score: float
 
 
-def selected_evaluation(metrics_csv: Path, since: int = 0) -> SelectedEvaluation | None:
-    """The evaluation of a run's ``metrics.csv`` that :class:`PolicySelection` picked among those after
-    step ``since`` (a switch); None for a run without the column or with no defined criterion."""
-    with Path(metrics_csv).open(newline="") as handle:
-        rows = [row for row in csv.DictReader(handle) if int(float(row["env_steps"])) > since]
-    ratios = np.array([float(row.get(SELECTION_COLUMN) or "nan") for row in rows])
-    if not len(ratios) or not np.isfinite(ratios).any():
+def selected_evaluation(run: Path, since: int = 0) -> SelectedEvaluation | None:
+    """The evaluation of ``run/metrics.csv`` that :class:`PolicySelection` picked among those after step
+    ``since`` (a switch); None for a run without the column or with no defined criterion after ``since``."""
+    try:
+        steps, ratios = read_curve(Path(run), SELECTION_COLUMN)
+    except RankGameError:  # a run of another trainer, or of a version before selection
         return None
-    pick = len(ratios) - 1 - int(np.nanargmax(ratios[::-1]))  # the latest of the largest
-    row = rows[pick]
-    return SelectedEvaluation(int(float(row["env_steps"])), float(ratios[pick]), float(row["normalized_score"]))
+    scores = dict(zip(*read_curve(Path(run), "normalized_score"), strict=True))
+    later = [(ratio, step) for step, ratio in zip(steps, ratios, strict=True) if step > since and math.isfinite(ratio)]
+    if not later:
+        return None
+    ratio, step = max(later)  # the largest, the latest of equals
+    return SelectedEvaluation(step, ratio, scores[step])
