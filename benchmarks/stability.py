@@ -28,7 +28,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from rankgame.report import SAC_TRUE_REWARD, true_reward_curve
+from rankgame.report import SAC_TRUE_REWARD, collapse_counts, true_reward_curve
 
 
 @dataclass(frozen=True)
@@ -39,16 +39,6 @@ class RunScores:
     name: str
     steps: tuple[int, ...]
     scores: tuple[float, ...]
-
-
-def collapse_counts(scores: tuple[float, ...], reach: float, below: float) -> tuple[int, int] | None:
-    """``(evaluations after the first one at reach or more, how many of them are below below)``; None
-    when the run never reaches ``reach``."""
-    first = next((i for i, score in enumerate(scores) if score >= reach), None)
-    if first is None:
-        return None
-    later = scores[first + 1 :]
-    return len(later), sum(score < below for score in later)
 
 
 def run_config(folder: Path) -> dict:
