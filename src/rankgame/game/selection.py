@@ -81,4 +81,4 @@ def selected_evaluation(run: Path, since: int = 0) -> SelectedEvaluation | None:
     if not later:
         return None
     ratio, step = max(later)  # the largest, the latest of equals
-    return SelectedEvaluation(step, ratio, scores[step])
+    return SelectedEvaluation(step, ratio, scores.get(step, math.nan))
