@@ -221,11 +221,12 @@ def collapse_kind(length: int, horizon: int, true_per_step: float, stand_per_ste
     return "stand" if true_per_step < stand_per_step else "other"
 
 
-def learned_return_ratio(column: dict[str, np.ndarray], horizon: int) -> np.ndarray:
+def probe_learned_return(column: dict[str, np.ndarray], horizon: int) -> np.ndarray:
     """Per evaluation ``(E,)``: the learned return of the probe episode over ``horizon`` steps (the
     absorbing state's reward after an early end) as a share of the expert's under the same reward,
     ``(r_policy L + r_absorbing (H - L)) / (r_expert H)``; NaN where the expert's reward is not positive.
-    It uses no true reward, so the evaluation where it is largest is a policy a user could select."""
+    It uses no true reward; the runs' own criterion (:mod:`rankgame.game.selection`) is the same on the
+    evaluation episodes, and probes older than it have only this one."""
     length = column["policy_length"]
     learned = column["reward_policy"] * length + column["reward_absorbing"] * (horizon - length)
     expert = column["reward_expert"] * horizon
@@ -262,7 +263,7 @@ def summarize_probe(
         for r in rows
         if r["collapsed"]
     ]
-    ratio = learned_return_ratio(column, horizon)
+    ratio = probe_learned_return(column, horizon)
     pick = len(ratio) - 1 - int(np.nanargmax(ratio[::-1]))  # the latest of the best
     return {
         "probe": str(probe_csv),
