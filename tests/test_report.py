@@ -214,6 +214,7 @@ def test_report_tables_match_the_scores_worked_out_by_hand(archive: Path, tmp_pa
         "1/2 = 50.0%",
         f"{(90 + 100 + 40) / 3:.1f}",
         "-",  # these runs log no selection criterion
+        "1/3 · -",  # s2 ends at 40
         f"{(90 + 100 + 90) / 3:.1f}",
         "300k",
     ]
@@ -268,7 +269,7 @@ def test_the_stability_table_shows_the_score_of_the_policy_each_run_selected(tmp
     page = write_report([tmp_path / "sel"], tmp_path / "out", n_boot=50).read_text()
     row = table_row(section(page, "## Stability"), "Hopper-v5", "rank-pal-auto", "sel")
     # s0 selects its 200k evaluation (85), s1 its 300k one (100)
-    assert row[7] == f"{(85 + 100) / 2:.1f} (2 runs)"
+    assert row[7:9] == [f"{(85 + 100) / 2:.1f} (2 runs)", "1/3 · 0/2"]  # s2 ends at 40
 
 
 def test_a_rankgame_expert_run_is_the_sac_reference_normalized_with_the_shipped_expert(tmp_path: Path) -> None:

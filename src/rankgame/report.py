@@ -343,6 +343,17 @@ class Stability:
     """Mean over the runs of each run's best evaluation."""
     selected: tuple[float, ...] = ()
     """Score of each run's selected evaluation, for the runs that select one."""
+    final_below: int = 0
+    """How many runs' last evaluations are below ``below``: a collapsed policy handed over."""
+    below: float = 50.0
+
+    @property
+    def handed_over_text(self) -> str:
+        """Runs whose last and whose selected evaluations are below :attr:`below`, ``1/5 · 0/5``."""
+        selected = (
+            f"{sum(score < self.below for score in self.selected)}/{len(self.selected)}" if self.selected else "-"
+        )
+        return f"{self.final_below}/{self.runs} · {selected}"
 
     @property
     def selected_text(self) -> str:
@@ -370,6 +381,8 @@ def stability(runs: Sequence[Run], reach: float = 80.0, below: float = 50.0) -> 
         final=float(np.mean([run.scores[-1] for run in runs])),
         best=float(np.mean([run.scores.max() for run in runs])),
         selected=tuple(run.selected for run in runs if run.selected is not None),
+        final_below=sum(run.scores[-1] < below for run in runs),
+        below=below,
     )
 
 
@@ -713,7 +726,8 @@ def build_page(
         f"After a run first reaches {reach:g}, the share of its later evaluations below {below:g}, pooled over "
         f"the group's runs that reached {reach:g}; final and best are means over the group's runs of each run's "
         "last and best evaluation, selected the mean of the evaluations whose policy each run kept as "
-        "`selected_policy.msgpack`, chosen by its learned reward alone (no true reward).",
+        "`selected_policy.msgpack`, chosen by its learned reward alone (no true reward). Handed over below "
+        f"{below:g}: the runs whose final, and whose selected, evaluation is below {below:g}.",
         "",
     )
     stability_body = []
@@ -732,6 +746,7 @@ def build_page(
                 result.share_text,
                 _num(result.final),
                 result.selected_text,
+                result.handed_over_text,
                 _num(result.best),
                 reached_at,
             ]
@@ -745,6 +760,7 @@ def build_page(
         f"later evaluations below {below:g}",
         "final (mean)",
         "selected (mean)",
+        f"handed over below {below:g} (final · selected)",
         "best (mean)",
         "last step",
     ]
