@@ -9,7 +9,9 @@ and training resets) and prints, as JSON:
 * per run: its final and selected evaluations in ``metrics.csv`` (step, score, criterion) and the
   fresh scores of both actors;
 * over the runs: n, mean and sample standard deviation (n - 1) of each fresh score, and how many of
-  the actors score below ``--below`` (50): a collapsed policy handed to the user.
+  the actors score below ``--below`` (50): a collapsed policy handed to the user;
+* over all the runs' evaluations: the Spearman rank correlation between the criterion and the
+  normalized score (how well the learned reward alone orders the policies by their true score).
 
 Example (the held-out runs of the notebook's selection study)::
 
@@ -30,7 +32,7 @@ import numpy as np
 from rankgame.atomic import atomic_write_bytes
 from rankgame.errors import RankGameError
 from rankgame.evaluate import EvaluateConfig, evaluate_policy
-from rankgame.game.selection import SELECTED_POLICY_NAME, selected_evaluation
+from rankgame.game.selection import SELECTED_POLICY_NAME, SELECTION_COLUMN, selected_evaluation
 from rankgame.plot import read_curve
 from rankgame.run import POLICY_NAME
 
@@ -64,6 +66,30 @@ def score_run(folder: Path, episodes: int, seed: int) -> dict[str, Any]:
             "fresh_score": fresh(SELECTED_POLICY_NAME),
         },
     }
+
+
+def spearman(x: np.ndarray, y: np.ndarray) -> float:
+    """Spearman's rank correlation of ``x (N,)`` and ``y (N,)`` (average ranks for ties)."""
+
+    def ranks(values: np.ndarray) -> np.ndarray:
+        order = np.argsort(values, kind="stable")
+        ranked = np.empty(len(values))
+        ranked[order] = np.arange(len(values), dtype=float)
+        for value in np.unique(values):  # ties share their mean rank
+            ranked[values == value] = ranked[values == value].mean()
+        return ranked
+
+    return float(np.corrcoef(ranks(x), ranks(y))[0, 1])
+
+
+def criterion_and_scores(folders: list[Path]) -> tuple[np.ndarray, np.ndarray]:
+    """The criterion and the normalized score ``(N,)`` of every evaluation of the runs where both exist."""
+    pairs = []
+    for folder in folders:
+        criterion = dict(zip(*read_curve(folder, SELECTION_COLUMN), strict=True))
+        scores = dict(zip(*read_curve(folder, "normalized_score"), strict=True))
+        pairs += [(value, scores[step]) for step, value in criterion.items() if step in scores and np.isfinite(value)]
+    return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
 
 
 def aggregate(runs: list[dict[str, Any]], below: float) -> dict[str, Any]:
@@ -102,6 +128,7 @@ def main(argv: list[str]) -> int:
         "episodes": args.episodes,
         "seed": args.seed,
         "aggregate": aggregate(runs, args.below),
+        "criterion_score_spearman": spearman(*criterion_and_scores(folders)),
         "runs": runs,
     }
     text = json.dumps(result, indent=2)

@@ -8,6 +8,7 @@ import math
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from conftest import TOY_TRAIN_ARGS
 
@@ -104,3 +105,10 @@ def test_a_toy_run_hands_over_the_policy_its_learned_reward_rates_best(
     assert result["runs"][0]["selected"]["env_steps"] == summary["env_steps"]
     assert result["aggregate"]["n"] == 1 and result["aggregate"]["selected"]["below"] == 0
     assert selection_benchmark.main([str(tmp_path / "missing")]) == 1
+
+
+def test_spearman_ranks_with_ties_averaged() -> None:
+    assert selection_benchmark.spearman(np.array([1.0, 2.0, 3.0]), np.array([10.0, 30.0, 20.0])) == pytest.approx(0.5)
+    # x ranks 0, 1.5, 1.5, 3 against y ranks 0, 1, 2, 3: correlation 0.9486833 (= 3 / sqrt(10))
+    value = selection_benchmark.spearman(np.array([1.0, 2.0, 2.0, 4.0]), np.arange(4.0))
+    assert value == pytest.approx(3 / np.sqrt(10))
