@@ -13,10 +13,12 @@ and training resets) and prints, as JSON:
 * over all the runs' evaluations: the Spearman rank correlation between the criterion and the
   normalized score (how well the learned reward alone orders the policies by their true score).
 
-Example (the held-out runs of the notebook's selection study)::
+``--plot FIG`` also draws every evaluation's criterion against its normalized score, each run's
+selected evaluation starred and its last one ringed (matplotlib, the ``plot`` extra). Example (the
+held-out runs of the notebook's selection study)::
 
-    python benchmarks/selection.py benchmarks/results/selection-heldout-hopper-pal/* --episodes 20 \\
-        --out benchmarks/results/selection-heldout-hopper-pal/fresh.json
+    python benchmarks/selection.py benchmarks/results/selection-heldout-hopper-pal/*s10* --episodes 20 \\
+        --out benchmarks/results/selection-heldout-hopper-pal/fresh.json --plot docs/img/selection.png
 """
 
 from __future__ import annotations
@@ -92,6 +94,37 @@ def criterion_and_scores(folders: list[Path]) -> tuple[np.ndarray, np.ndarray]:
     return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
 
 
+def plot_criterion(folders: list[Path], runs: list[dict[str, Any]], out: Path) -> None:
+    """Criterion against normalized score for every evaluation of ``folders``; selected starred, last ringed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    for folder, run in zip(folders, runs, strict=True):
+        x, y = criterion_and_scores([folder])
+        dots = ax.plot(x, y, "o", ms=3, alpha=0.6, label=folder.name)[0]
+        steps, criterion = read_curve(folder, SELECTION_COLUMN)
+        last = dict(zip(steps, criterion, strict=True)).get(run["final"]["env_steps"], np.nan)
+        ax.plot(
+            [run["selected"]["learned_return"]],
+            [run["selected"]["normalized_score"]],
+            "*",
+            ms=14,
+            color=dots.get_color(),
+            markeredgecolor="k",
+        )
+        ax.plot([last], [run["final"]["normalized_score"]], "o", ms=11, mfc="none", color=dots.get_color())
+    ax.axhline(50, color="r", lw=0.6, ls="--")
+    ax.set_xlabel("learned return of the evaluation episodes / the expert's (selection/learned_return)")
+    ax.set_ylabel("normalized score (true reward)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+
+
 def aggregate(runs: list[dict[str, Any]], below: float) -> dict[str, Any]:
     """n, mean, sample std (n - 1) and the count below ``below`` of the fresh scores of each actor."""
     summary: dict[str, Any] = {"n": len(runs)}
@@ -112,6 +145,7 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--seed", type=int, default=FRESH_SEED, help="reset seed of the first fresh episode")
     parser.add_argument("--below", type=float, default=50.0, help="a score below this is a collapsed policy")
     parser.add_argument("--out", type=Path, help="also write the JSON here")
+    parser.add_argument("--plot", type=Path, help="also draw the criterion against the score here (PNG)")
     args = parser.parse_args(argv)
     try:
         if args.episodes <= 0:
@@ -131,6 +165,8 @@ def main(argv: list[str]) -> int:
         "criterion_score_spearman": spearman(*criterion_and_scores(folders)),
         "runs": runs,
     }
+    if args.plot is not None:
+        plot_criterion(folders, runs, args.plot)
     text = json.dumps(result, indent=2)
     if args.out is not None:
         atomic_write_bytes(args.out, (text + "\n").encode())

@@ -99,7 +99,10 @@ def test_a_toy_run_hands_over_the_policy_its_learned_reward_rates_best(
 
     # The benchmark scores both actors on fresh episodes, the selected one exactly as evaluate does.
     report = tmp_path / "fresh.json"
-    assert selection_benchmark.main([str(out), "--episodes", "10", "--seed", "777", "--out", str(report)]) == 0
+    figure = tmp_path / "selection.png"
+    args = [str(out), "--episodes", "10", "--seed", "777", "--out", str(report), "--plot", str(figure)]
+    assert selection_benchmark.main(args) == 0
+    assert figure.read_bytes()[:4] == b"\x89PNG"
     result = json.loads(report.read_text())
     assert result["runs"][0]["selected"]["fresh_score"] == fresh["normalized_score"]
     assert result["runs"][0]["selected"]["env_steps"] == summary["env_steps"]
