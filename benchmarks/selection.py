@@ -117,7 +117,7 @@ def plot_criterion(folders: list[Path], runs: list[dict[str, Any]], out: Path) -
         )
         ax.plot([last], [run["final"]["normalized_score"]], "o", ms=11, mfc="none", color=dots.get_color())
     ax.axhline(50, color="r", lw=0.6, ls="--")
-    ax.set_xlabel("learned return of the evaluation episodes / the expert's (selection/learned_return)")
+    ax.set_xlabel("learned return / expert's (selection/learned_return)")
     ax.set_ylabel("normalized score (true reward)")
     ax.legend(fontsize=7)
     fig.tight_layout()
