@@ -22,6 +22,7 @@ ROOT = Path("benchmarks") / "results"  # relative to REPO, so that the page name
 ARCHIVES = (
     "sample-efficiency",  # the paper's settings, seeds 0-2
     "stability-heldout-hopper-pal",  # the paper's settings, held-out seeds
+    "selection-heldout-hopper-pal",  # the same, held-out seeds 105-109, with their selected policies
     "stability-heldout-hopper-pal-still",  # the same with standing still ranked (--rankings.still-weight 0.2)
     "stability-heldout-hopper-pal-tuned",  # --recipe tuned (k 1, r_max 1, patience 1), held-out seeds
     "stability-sac-true-reward",  # SAC on the true reward (rankgame expert), the stability reference
