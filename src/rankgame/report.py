@@ -345,14 +345,13 @@ class Stability:
     """Score of each run's selected evaluation, for the runs that select one."""
     final_below: int = 0
     """How many runs' last evaluations are below ``below``: a collapsed policy handed over."""
-    below: float = 50.0
+    selected_below: int = 0
+    """How many of :attr:`selected` are below ``below``."""
 
     @property
     def handed_over_text(self) -> str:
-        """Runs whose last and whose selected evaluations are below :attr:`below`, ``1/5 · 0/5``."""
-        selected = (
-            f"{sum(score < self.below for score in self.selected)}/{len(self.selected)}" if self.selected else "-"
-        )
+        """Runs whose last and whose selected evaluations are below ``below``, ``1/5 · 0/5``."""
+        selected = f"{self.selected_below}/{len(self.selected)}" if self.selected else "-"
         return f"{self.final_below}/{self.runs} · {selected}"
 
     @property
@@ -373,6 +372,7 @@ def stability(runs: Sequence[Run], reach: float = 80.0, below: float = 50.0) -> 
     """The :class:`Stability` of a group of runs."""
     counts = [collapse_counts(run.scores.tolist(), reach, below) for run in runs]
     reached = [c for c in counts if c is not None]
+    selected = tuple(run.selected for run in runs if run.selected is not None)
     return Stability(
         runs=len(runs),
         never_reached=tuple(run.seed for run, c in zip(runs, counts, strict=True) if c is None),
@@ -380,9 +380,9 @@ def stability(runs: Sequence[Run], reach: float = 80.0, below: float = 50.0) -> 
         collapsed=sum(c[1] for c in reached),
         final=float(np.mean([run.scores[-1] for run in runs])),
         best=float(np.mean([run.scores.max() for run in runs])),
-        selected=tuple(run.selected for run in runs if run.selected is not None),
+        selected=selected,
         final_below=sum(run.scores[-1] < below for run in runs),
-        below=below,
+        selected_below=sum(score < below for score in selected),
     )
 
 

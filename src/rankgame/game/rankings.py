@@ -41,7 +41,7 @@ the objective the reward player minimizes.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 from typing import Any, Literal
 
@@ -181,20 +181,23 @@ class Rankings(_StoredInData):
         offline: the pref rankings' fixed chain of offline trajectories, else None.
         offline_weight: ``w`` of Eq. 6 (ignored without ``offline``).
         penalty_points: also sample the points of a gradient penalty (a loss that has one).
-        still: standing still ranked below the expert, with the same mixtures (its agent data is fixed),
-            else None.
         still_weight: ``w_s``, the share of the agent-vs-expert loss that ``still`` gets.
-        still_of: builds ``still`` from expert inputs ``(M, H, d)`` (its poses come from the expert), so
-            that a changed expert gets its own; None without ``still``.
+        still_of: builds the standing-still rankings from expert inputs ``(M, H, d)`` (its poses come
+            from the expert, so a changed expert gets its own); None to rank no standing still.
+        still: standing still ranked below the expert, with the same mixtures (its agent data is fixed),
+            built by ``still_of`` from ``data``'s expert; None without ``still_of``.
     """
 
     data: RankingData
     offline: OfflineRankings | None = None
     offline_weight: float = 0.0
     penalty_points: bool = False
-    still: RankingData | None = None
     still_weight: float = 0.0
     still_of: Callable[[np.ndarray], RankingData] | None = None
+    still: RankingData | None = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.still = None if self.still_of is None else self.still_of(self.data.expert)
 
     def sample(self, rng: np.random.Generator, n_batches: int, batch_size: int) -> tuple[Any, ...]:
         """``n_batches`` training batches: inputs ``(n, B, d)``, targets ``(n, B)``, is-expert flags
@@ -436,8 +439,7 @@ def build_rankings(
         if config.still_poses == "expert" and layout.kind != "ss":
             raise ValueError("rankings still_poses expert needs an (s, s') reward")
         still_of = partial(_still_rankings, config.still_poses, lambdas, config.targets(lambdas), layout, time_aligned)
-    still = None if still_of is None else still_of(expert)
-    parts = {"still": still, "still_weight": config.still_weight, "still_of": still_of}
+    parts = {"still_weight": config.still_weight, "still_of": still_of}
     if preferences is None:
         return Rankings(data, penalty_points=loss.gradient_penalty, **parts)
     if source == "pref" and not loss.regresses_targets:
