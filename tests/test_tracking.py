@@ -43,6 +43,14 @@ def _wandb_records(run_file: Path) -> Iterator[object]:
             yield record
 
 
+def _stop_wandb() -> None:
+    """Stop this process's W&B service, as the end of a ``rankgame train`` process does: the service
+    writes a run's file in the background, and the file is whole only once it has stopped."""
+    import wandb
+
+    wandb.teardown()
+
+
 def _history(out: Path) -> dict[int, dict[str, str]]:
     """Every W&B run file's logged rows under ``OUT/wandb``, by step (later files win)."""
     rows: dict[int, dict[str, str]] = {}
@@ -61,6 +69,7 @@ def test_an_offline_wandb_run_holds_the_settings_every_row_and_the_policy(
     out = tmp_path / "run"
     args = ["train", *TOY_TRAIN_ARGS, "--expert", str(toy_expert_file), "--eval-every", "400", "--out", str(out)]
     assert main([*args, "--steps", "800", "--wandb"]) == 0
+    _stop_wandb()
     run_id = (out / RUN_ID_NAME).read_text().strip()
     (run_file,) = out.glob(f"wandb/offline-run-*-{run_id}/run-{run_id}.wandb")
     records = list(_wandb_records(run_file))
@@ -77,6 +86,7 @@ def test_an_offline_wandb_run_holds_the_settings_every_row_and_the_policy(
         assert float(history[step]["normalized_score"]) == pytest.approx(float(row["normalized_score"]), rel=1e-5)
     # A resumed run logs into the same W&B run, from where its checkpoint left off.
     assert main([*args, "--steps", "1200", "--wandb", "--resume"]) == 0
+    _stop_wandb()
     assert (out / RUN_ID_NAME).read_text().strip() == run_id
     assert len(list(out.glob(f"wandb/offline-run-*-{run_id}"))) >= 1
     assert sorted(_history(out)) == [400, 800, 1200]

@@ -92,9 +92,10 @@ class WandbRun:
         )
 
     def log(self, row: Mapping[str, float | int]) -> None:
-        """Log an evaluation row at its ``env_steps``."""
+        """Log an evaluation row at its ``env_steps``, committed at once: W&B would otherwise hold a row
+        given an explicit step until the next row or the end of the run, and lose it with a killed process."""
         step = int(row["env_steps"])
-        self.run.log({key: value for key, value in row.items() if key != "env_steps"}, step=step)
+        self.run.log({key: value for key, value in row.items() if key != "env_steps"}, step=step, commit=True)
 
     def finish(self, policy: Path | None) -> None:
         """Attach the policy file (if the run saved one) as a model artifact and close the W&B run."""
