@@ -26,14 +26,13 @@ Example (the notebook's figure)::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from script_io import emit, refused
 
-from rankgame.atomic import atomic_write_bytes
 from rankgame.game.rankings import RankingsConfig
 
 #: State-space sizes and numbers of ranked behaviors of the default grid.
@@ -151,10 +150,8 @@ def main(argv: list[str]) -> int:
         (args.trials < 1, "--trials must be positive"),
         (not np.isfinite(args.k) or args.k <= 0, "--k must be positive and finite"),
     ]
-    for bad, message in problems:
-        if bad:
-            print(f"rank_preservation.py: {message}", file=sys.stderr)
-            return 1
+    if refused("rank_preservation.py", problems):
+        return 1
     cells = study(tuple(args.states), tuple(args.behaviors), args.trials, args.targets, args.k, args.seed)
     result = {"command": "python benchmarks/rank_preservation.py " + " ".join(argv), "cells": cells}
     if args.plot is not None:
@@ -163,10 +160,7 @@ def main(argv: list[str]) -> int:
         except ImportError:
             print("rank_preservation.py: --plot needs matplotlib: pip install 'rankgame[plot]'", file=sys.stderr)
             return 1
-    text = json.dumps(result, indent=2)
-    if args.out is not None:
-        atomic_write_bytes(args.out, (text + "\n").encode())
-    print(text)
+    emit(result, args.out)
     return 0
 
 

@@ -33,7 +33,6 @@ figure)::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,9 +40,9 @@ from typing import Any
 
 import jax
 import numpy as np
+from script_io import emit, refused
 
 from rankgame.absorbing import flag_obs
-from rankgame.atomic import atomic_write_bytes
 from rankgame.game.rankings import RankingsConfig, RankingSource, build_rankings
 from rankgame.reward.inputs import InputLayout
 from rankgame.reward.losses import LOSSES
@@ -201,10 +200,8 @@ def main(argv: list[str]) -> int:
         (args.horizon < 2, "--horizon must be at least 2"),
         (not 0.0 <= args.noise < 1.0, "--noise must lie in [0, 1)"),
     ]
-    for bad, message in problems:
-        if bad:
-            print(f"reward_landscape.py: {message}", file=sys.stderr)
-            return 1
+    if refused("reward_landscape.py", problems):
+        return 1
     per_method = study(args.seeds, args.steps, args.trajectories, args.horizon, args.noise)
     if args.plot is not None:
         plot_study(per_method, args.seeds[0], args.trajectories, args.horizon, args.noise, args.plot)
@@ -214,10 +211,7 @@ def main(argv: list[str]) -> int:
         "seeds": args.seeds,
         "methods": {label: {k: v for k, v in r.items() if k != "_grid"} for label, r in per_method.items()},
     }
-    text = json.dumps(result, indent=2)
-    if args.out is not None:
-        atomic_write_bytes(args.out, (text + "\n").encode())
-    print(text)
+    emit(result, args.out)
     return 0
 
 

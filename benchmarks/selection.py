@@ -30,8 +30,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from script_io import emit
 
-from rankgame.atomic import atomic_write_bytes
 from rankgame.errors import RankGameError
 from rankgame.evaluate import EvaluateConfig, evaluate_policy
 from rankgame.game.selection import SELECTED_POLICY_NAME, SELECTION_COLUMN, selected_evaluation
@@ -167,10 +167,7 @@ def main(argv: list[str]) -> int:
     }
     if args.plot is not None:
         plot_criterion(folders, runs, args.plot)
-    text = json.dumps(result, indent=2)
-    if args.out is not None:
-        atomic_write_bytes(args.out, (text + "\n").encode())
-    print(text)
+    emit(result, args.out)
     return 0
 
 
