@@ -190,6 +190,7 @@ def test_report_tables_match_the_scores_worked_out_by_hand(archive: Path, tmp_pa
     assert table_row(at_300k, "rank-pal-auto", "archive")[2] == f"{mean:.1f} ± {std:.1f} (3, tuning)"
     longest = section(page, "## Normalized score at the longest horizon each cell's runs share")
     assert table_row(longest, "rank-pal-auto", "archive")[2] == f"{mean:.1f} ± {std:.1f} (3, tuning) at 300k"
+    assert "gradient step" not in longest  # no bc run: every step is an environment step
 
     # IQM at 100k of rank-pal-auto pools its six runs: sorted 0, 10, 20, 30, 40, 50 weighted 0, 1/6, 1/3, 1/3,
     # 1/6, 0.
@@ -374,3 +375,11 @@ def test_the_claims_table_reads_success_rates_and_names_the_verdict(tmp_path: Pa
     (row,) = [line for line in lines if line.startswith(f"| {door.statement}")]
     # success rates: (1.0 + 0.5) / 2 = 75% against (0.2 + 0.0) / 2 = 10%
     assert "rankgame/Door-v0 at 60k: 75% (n=2) vs 10% (n=2)" in row and row.endswith("| **reproduced** |")
+
+
+def test_the_longest_horizon_says_that_bcs_steps_are_gradient_steps(archive: Path, tmp_path: Path) -> None:
+    make_run(archive / "Hopper-v5__bc__s0", "Hopper-v5", "bc", 0, (5.0,))
+    page = write_report([archive], tmp_path / "page", n_boot=50).read_text()
+    longest = section(page, "## Normalized score at the longest horizon each cell's runs share")
+    assert "For `bc`, which never acts in the environment, a step is a gradient step." in longest
+    assert table_row(longest, "bc", "archive")[2] == "5.0 (1, tuning) at 100k"

@@ -613,7 +613,8 @@ def build_page(
     page.add(
         "## Normalized score at the longest horizon each cell's runs share",
         "",
-        "Each cell is read at the last evaluation step that all of its runs logged, named after `at`.",
+        "Each cell is read at the last evaluation step that all of its runs logged, named after `at`."
+        + (" For `bc`, which never acts in the environment, a step is a gradient step." if "bc" in methods else ""),
         "",
     )
     body = []
