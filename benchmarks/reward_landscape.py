@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -72,6 +73,8 @@ PATH = np.linspace(0.0, 1.0, 51)
 #: The plotted and measured square, ``[-EXTENT, EXTENT]^2``, and its grid points per side.
 EXTENT, GRID = 2.5, 101
 METRICS = ("slope_at_agent", "steepest_tenth", "gradient_p95")
+#: ``states (..., 2) -> rewards (...)``.
+StateReward = Callable[[np.ndarray], np.ndarray]
 
 
 def paths(rng: np.random.Generator, trajectories: int, horizon: int, noise: float) -> tuple[np.ndarray, np.ndarray]:
@@ -98,19 +101,27 @@ def fit_reward(
     return player, state.params
 
 
-def normalized(player: RewardPlayer, params: Any, expert: np.ndarray, agent: np.ndarray) -> Any:
+def normalized(player: RewardPlayer, params: Any, expert: np.ndarray, agent: np.ndarray) -> StateReward:
     """``states (..., 2) -> (...)``: the bounded reward the policy is paid, shifted and scaled to 0 at its
-    mean over the agent's states and 1 at its mean over the expert's."""
+    mean over the agent's states and 1 at its mean over the expert's.
+
+    Raises:
+        ValueError: the reward does not pay the expert's states more than the agent's.
+    """
 
     def reward(states: np.ndarray) -> np.ndarray:
         flat = flag_obs(states.reshape(-1, 2).astype(np.float32))
         return np.asarray(player.reward(params, flat)).reshape(states.shape[:-1])
 
     low, high = reward(agent).mean(), reward(expert).mean()
+    if not high > low:
+        raise ValueError(f"the fitted reward pays the agent {low:.3g} and the expert {high:.3g}: no ranking to measure")
     return lambda states: (reward(states) - low) / (high - low)
 
 
-def measure(reward: Any, expert: np.ndarray, agent: np.ndarray) -> tuple[dict[str, float], np.ndarray, np.ndarray]:
+def measure(
+    reward: StateReward, expert: np.ndarray, agent: np.ndarray
+) -> tuple[dict[str, float], np.ndarray, np.ndarray]:
     """The metrics of the module docstring for a normalized ``reward``; also its mean profile ``(len(PATH),)``
     along the segments and its values on the grid ``(GRID, GRID)`` (rows: y, columns: x)."""
     segments = agent[..., None, :] + PATH[:, None] * (expert - agent)[..., None, :]  # (M, H, U, 2)
@@ -202,7 +213,11 @@ def main(argv: list[str]) -> int:
     ]
     if refused("reward_landscape.py", problems):
         return 1
-    per_method = study(args.seeds, args.steps, args.trajectories, args.horizon, args.noise)
+    try:
+        per_method = study(args.seeds, args.steps, args.trajectories, args.horizon, args.noise)
+    except ValueError as exc:
+        print(f"reward_landscape.py: {exc}", file=sys.stderr)
+        return 1
     if args.plot is not None:
         plot_study(per_method, args.seeds[0], args.trajectories, args.horizon, args.noise, args.plot)
     result = {
