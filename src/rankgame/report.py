@@ -68,6 +68,8 @@ CONFIG_KEYS = ("command", "env", "method", "seed", "steps")
 SCORE_COLUMN = "normalized_score"
 #: The method of a ``rankgame expert`` run: SAC on the task's true reward.
 SAC_TRUE_REWARD = "sac (true reward)"
+#: Methods that never act in the environment: their ``env_steps`` are gradient steps.
+GRADIENT_STEP_METHODS = ("bc",)
 #: What a ``rankgame expert`` run's ``config.json`` records instead of a method.
 EXPERT_RUN_KEYS = ("trajectories", "sac")
 #: The success rate's column (Pen, Door), read for the claims.
@@ -438,6 +440,8 @@ def curves_figure(env: str, groups: dict[GroupKey, list[Run]], n_boot: int, seed
         common = sorted(set.intersection(*(set(run.steps.tolist()) for run in runs)))
         table = np.array([[run.score_at(step) for step in common] for run in runs], np.float64)
         label = f"{key.method} · {key.variant} ({_count(len(runs), 'seed')}, {seed_kind(r.seed for r in runs)})"
+        if key.method in GRADIENT_STEP_METHODS:
+            label += ", x: gradient steps"
         (line,) = ax.plot(common, table.mean(axis=0), label=label)
         if len(runs) > 1:
             low, high = mean_band(table, n_boot, seed)
@@ -614,7 +618,11 @@ def build_page(
         "## Normalized score at the longest horizon each cell's runs share",
         "",
         "Each cell is read at the last evaluation step that all of its runs logged, named after `at`."
-        + (" For `bc`, which never acts in the environment, a step is a gradient step." if "bc" in methods else ""),
+        + "".join(
+            f" For `{method}`, which never acts in the environment, a step is a gradient step."
+            for method in GRADIENT_STEP_METHODS
+            if method in methods
+        ),
         "",
     )
     body = []
