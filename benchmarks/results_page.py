@@ -25,7 +25,10 @@ ARCHIVES = (
     "selection-heldout-hopper-pal",  # the same, held-out seeds 105-109, with their selected policies
     "stability-heldout-hopper-pal-still",  # the same with standing still ranked (--rankings.still-weight 0.2)
     "stability-heldout-hopper-pal-tuned",  # --recipe tuned (k 1, r_max 1, patience 1), held-out seeds
+    "stability-heldout-hopper-ral",  # RANK-RAL(auto), the paper's settings, held-out seeds
+    "modern-preset-tuning",  # RANK-PAL(auto) with --preset modern, tuning seeds
     "stability-sac-true-reward",  # SAC on the true reward (rankgame expert), the stability reference
+    "sac-modern-true-reward",  # the same with --preset modern
     "baselines-lfo",  # GAIfO, DACfO, BCO, f-IRL, OPOLO (LfO, one expert trajectory)
     "lfd-hopper",  # RANK-PAL(auto) and RANK-RAL(auto) from demonstrations (LfD, one expert trajectory)
     "baselines-lfd",  # IQ-Learn (LfD, one expert trajectory)
