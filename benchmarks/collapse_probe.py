@@ -57,6 +57,7 @@ from rankgame.envs.rollout import rollout
 from rankgame.errors import RankGameError
 from rankgame.game.loop import RankingGame
 from rankgame.game.methods import METHODS
+from rankgame.plot import pyplot
 
 PROBE_COLUMNS = (
     "env_steps",
@@ -175,11 +176,7 @@ def train_with_probe(argv: list[str]) -> dict[str, Any]:
 
 def plot_probe(probe_csv: Path, out: Path, title: str | None) -> None:
     """Three panels against steps: the normalized score, the rewards and the values."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     column = _read_probe(probe_csv)
     steps = column["env_steps"] / 1000
     fig, axes = plt.subplots(3, 1, figsize=(7, 8), sharex=True)

@@ -33,7 +33,9 @@ from typing import Any
 import numpy as np
 from script_io import emit, refused
 
+from rankgame.errors import RankGameError
 from rankgame.game.rankings import RankingsConfig
+from rankgame.plot import pyplot
 
 #: State-space sizes and numbers of ranked behaviors of the default grid.
 STATES = (2, 5, 10, 20, 50, 100, 200, 500, 1000)
@@ -106,11 +108,7 @@ def study(
 
 def plot_study(cells: list[dict[str, Any]], out: Path) -> None:
     """The two panels of the paper's figure: consistency against ``|S|`` and against ``n``, with 95% CIs."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, (by_states, by_behaviors) = plt.subplots(1, 2, figsize=(10, 4))
     for axis, line_key, x_key, label in (
         (by_states, "behaviors", "states", "ranked behaviors n = {}"),
@@ -152,14 +150,16 @@ def main(argv: list[str]) -> int:
     ]
     if refused("rank_preservation.py", problems):
         return 1
+    try:
+        if args.plot is not None:
+            pyplot()  # a missing plot extra fails here, before any work
+    except RankGameError as exc:
+        print(f"rank_preservation.py: {exc}", file=sys.stderr)
+        return 1
     cells = study(tuple(args.states), tuple(args.behaviors), args.trials, args.targets, args.k, args.seed)
     result = {"command": "python benchmarks/rank_preservation.py " + " ".join(argv), "cells": cells}
     if args.plot is not None:
-        try:
-            plot_study(cells, args.plot)
-        except ImportError:
-            print("rank_preservation.py: --plot needs matplotlib: pip install 'rankgame[plot]'", file=sys.stderr)
-            return 1
+        plot_study(cells, args.plot)
     emit(result, args.out)
     return 0
 

@@ -44,7 +44,9 @@ import numpy as np
 from script_io import emit, refused
 
 from rankgame.absorbing import flag_obs
+from rankgame.errors import RankGameError
 from rankgame.game.rankings import RankingsConfig, RankingSource, build_rankings
+from rankgame.plot import pyplot
 from rankgame.reward.inputs import InputLayout
 from rankgame.reward.losses import LOSSES
 from rankgame.reward.player import RewardConfig, RewardPlayer
@@ -141,18 +143,22 @@ def measure(
     return metrics, profile, grid
 
 
-def study(seeds: list[int], steps: int, trajectories: int, horizon: int, noise: float) -> dict[str, Any]:
-    """Every method on every seed: metrics, mean profiles and the first seed's grids."""
+def study(
+    seeds: list[int], steps: int, trajectories: int, horizon: int, noise: float
+) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Every method on every seed: per method its metrics and mean profile (JSON), and its normalized
+    reward on the grid ``(GRID, GRID)`` for the first seed."""
     per_method: dict[str, Any] = {}
+    first_grids: dict[str, np.ndarray] = {}
     for method in METHODS:
-        runs, profiles, first_grid = [], [], None
+        runs, profiles = [], []
         for seed in seeds:
             expert, agent = paths(np.random.default_rng(seed), trajectories, horizon, noise)
             player, params = fit_reward(method, expert, agent, steps, seed)
             metrics, profile, grid = measure(normalized(player, params, expert, agent), expert, agent)
             runs.append({"seed": seed, **metrics})
             profiles.append(profile)
-            first_grid = grid if first_grid is None else first_grid
+            first_grids.setdefault(method.label, grid)
         summary = {}
         for name in METRICS:
             mean, std = mean_and_sample_std([run[name] for run in runs])
@@ -163,23 +169,26 @@ def study(seeds: list[int], steps: int, trajectories: int, horizon: int, noise: 
             "summary": summary,
             "runs": runs,
             "profile": np.mean(profiles, axis=0).tolist(),
-            "_grid": first_grid,
         }
-    return per_method
+    return per_method, first_grids
 
 
-def plot_study(per_method: dict[str, Any], seed: int, trajectories: int, horizon: int, noise: float, out: Path) -> None:
+def plot_study(
+    per_method: dict[str, Any],
+    grids: dict[str, np.ndarray],
+    seed: int,
+    trajectories: int,
+    horizon: int,
+    noise: float,
+    out: Path,
+) -> None:
     """The first seed's three normalized landscapes with the data on them, and the mean profiles."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     expert, agent = paths(np.random.default_rng(seed), trajectories, horizon, noise)
     fig, axes = plt.subplots(1, len(per_method) + 1, figsize=(4.2 * (len(per_method) + 1), 3.8))
-    for axis, (label, result) in zip(axes, per_method.items(), strict=False):
+    for axis, (label, grid) in zip(axes, grids.items(), strict=False):
         extent = (-EXTENT, EXTENT, -EXTENT, EXTENT)
-        image = axis.imshow(result["_grid"], origin="lower", extent=extent, cmap="viridis", vmin=-0.5, vmax=1.5)
+        image = axis.imshow(grid, origin="lower", extent=extent, cmap="viridis", vmin=-0.5, vmax=1.5)
         axis.plot(*agent.reshape(-1, 2).T, ".", color="hotpink", ms=2, label="agent")
         axis.plot(*expert.reshape(-1, 2).T, ".", color="black", ms=2, label="expert")
         axis.set_title(f"{label}, seed {seed}", fontsize=9)
@@ -214,17 +223,19 @@ def main(argv: list[str]) -> int:
     if refused("reward_landscape.py", problems):
         return 1
     try:
-        per_method = study(args.seeds, args.steps, args.trajectories, args.horizon, args.noise)
-    except ValueError as exc:
+        if args.plot is not None:
+            pyplot()  # a missing plot extra fails here, before any work
+        per_method, grids = study(args.seeds, args.steps, args.trajectories, args.horizon, args.noise)
+    except (ValueError, RankGameError) as exc:
         print(f"reward_landscape.py: {exc}", file=sys.stderr)
         return 1
     if args.plot is not None:
-        plot_study(per_method, args.seeds[0], args.trajectories, args.horizon, args.noise, args.plot)
+        plot_study(per_method, grids, args.seeds[0], args.trajectories, args.horizon, args.noise, args.plot)
     result = {
         "command": "python benchmarks/reward_landscape.py " + " ".join(argv),
         "steps": args.steps,
         "seeds": args.seeds,
-        "methods": {label: {k: v for k, v in r.items() if k != "_grid"} for label, r in per_method.items()},
+        "methods": per_method,
     }
     emit(result, args.out)
     return 0

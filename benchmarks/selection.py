@@ -35,7 +35,7 @@ from script_io import emit
 from rankgame.errors import RankGameError
 from rankgame.evaluate import EvaluateConfig, evaluate_policy
 from rankgame.game.selection import SELECTED_POLICY_NAME, SELECTION_COLUMN, selected_evaluation
-from rankgame.plot import read_curve
+from rankgame.plot import pyplot, read_curve
 from rankgame.run import POLICY_NAME
 
 #: First reset seed of the fresh episodes (the runs evaluate from seed + 10000, seeds 0-999 here).
@@ -96,11 +96,7 @@ def criterion_and_scores(folders: list[Path]) -> tuple[np.ndarray, np.ndarray]:
 
 def plot_criterion(folders: list[Path], runs: list[dict[str, Any]], out: Path) -> None:
     """Criterion against normalized score for every evaluation of ``folders``; selected starred, last ringed."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4.5))
     for folder, run in zip(folders, runs, strict=True):
         x, y = criterion_and_scores([folder])
@@ -153,6 +149,8 @@ def main(argv: list[str]) -> int:
         folders = [run for run in args.runs if not run.is_file()]  # a shell glob may list a result file
         if not folders:
             raise RankGameError("no run folders given")
+        if args.plot is not None:
+            pyplot()  # a missing plot extra fails here, before any work
         runs = [score_run(folder, args.episodes, args.seed) for folder in folders]
     except RankGameError as exc:
         print(f"selection.py: {exc}", file=sys.stderr)

@@ -13,6 +13,7 @@ import textwrap
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -23,6 +24,19 @@ from rankgame.errors import RankGameError
 TITLE_WIDTH = 70
 #: A run folder name's seed suffix: ``_s0``, ``-s12``, ``__seed3``.
 SEED_SUFFIX = re.compile(r"[_-]+s(?:eed)?\d+$")
+
+
+def pyplot() -> Any:
+    """``matplotlib.pyplot`` drawing to files (the Agg backend); a one-line :class:`RankGameError` if the
+    ``plot`` extra is not installed."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise RankGameError("plotting needs matplotlib: pip install 'rankgame[plot]'") from None
+    return plt
 
 
 def read_curve(run: Path, column: str, max_steps: int | None = None) -> tuple[list[int], list[float]]:
@@ -118,13 +132,7 @@ def plot_groups(
         else:
             steps, values = read_curve(Path(group[0]), column, max_steps)
             curves.append((label, steps, values, None))
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        raise RankGameError("plotting needs matplotlib: pip install 'rankgame[plot]'") from None
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for label, steps, values, std in curves:
         (line,) = ax.plot(steps, values, label=label)

@@ -50,7 +50,7 @@ from rankgame.claims import CLAIMS, Metric, Side, judge
 from rankgame.data.published import RELEASED_CURVES, TABLE1
 from rankgame.errors import RankGameError
 from rankgame.game.selection import selected_evaluation
-from rankgame.plot import read_curve
+from rankgame.plot import pyplot, read_curve
 from rankgame.stats import (
     Interval,
     iqm,
@@ -411,17 +411,6 @@ def mean_band(table: np.ndarray, n_boot: int, seed: int, level: float = 0.95) ->
 # -------------------------------------------------------------------------------------------- figures
 
 
-def _pyplot() -> Any:
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        raise RankGameError("plotting needs matplotlib: pip install 'rankgame[plot]'") from None
-    return plt
-
-
 def _png(fig: Any) -> bytes:
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=110)
@@ -434,7 +423,7 @@ def _png(fig: Any) -> bytes:
 def curves_figure(env: str, groups: dict[GroupKey, list[Run]], n_boot: int, seed: int) -> bytes:
     """PNG of the learning curves of every group of ``env``: the mean over seeds at the steps all of a
     group's runs logged, with a bootstrap 95% band of that mean (none for a single run)."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for key, runs in groups.items():
         common = sorted(set.intersection(*(set(run.steps.tolist()) for run in runs)))
@@ -459,7 +448,7 @@ def profile_figure(pooled: dict[int, dict[Row, np.ndarray]]) -> bytes:
     """PNG of the performance profiles, one panel per step: the fraction of runs (all tasks pooled) whose
     normalized score is above each threshold, one line per (method, variant). ``pooled[step][row]``:
     the scores ``(n,)`` of the row's runs at that step."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(1, len(pooled), figsize=(5.5 * len(pooled), 4), squeeze=False)
     everything = np.concatenate([scores for rows in pooled.values() for scores in rows.values()] or [np.zeros(1)])
     thresholds = np.linspace(min(0.0, everything.min()), max(100.0, everything.max()) + 5.0, 400)
@@ -824,7 +813,7 @@ def write_report(
         raise RankGameError("the stability thresholds must be finite")
     at = list(dict.fromkeys(at))
     loaded = load_runs(runs)
-    _pyplot()  # a missing plot extra fails here, before any work
+    pyplot()  # a missing plot extra fails here, before any work
     text, figures = build_page(loaded, at, n_boot, seed, reach, below, load_runs(claim_runs))
     for name, data in figures.items():
         atomic_write_bytes(out / IMAGE_FOLDER / name, data)
