@@ -49,6 +49,7 @@ from rankgame.atomic import atomic_write_bytes
 from rankgame.claims import CLAIMS, Metric, Side, judge
 from rankgame.data.published import RELEASED_CURVES, TABLE1
 from rankgame.errors import RankGameError
+from rankgame.game.methods import OWN_TRAINER_METHODS
 from rankgame.game.selection import selected_evaluation
 from rankgame.plot import pyplot, read_curve
 from rankgame.stats import (
@@ -69,7 +70,7 @@ SCORE_COLUMN = "normalized_score"
 #: The method of a ``rankgame expert`` run: SAC on the task's true reward.
 SAC_TRUE_REWARD = "sac (true reward)"
 #: Methods that never act in the environment: their ``env_steps`` are gradient steps.
-GRADIENT_STEP_METHODS = ("bc",)
+GRADIENT_STEP_METHODS = tuple(name for name, trainer in OWN_TRAINER_METHODS.items() if not trainer.acts)
 #: What a ``rankgame expert`` run's ``config.json`` records instead of a method.
 EXPERT_RUN_KEYS = ("trajectories", "sac")
 #: The success rate's column (Pen, Door), read for the claims.

@@ -110,17 +110,19 @@ METHODS: dict[str, Method] = {
 class OwnTrainer:
     """A method that plays no ranking game but has a trainer of its own (:mod:`rankgame.baselines`): the
     settings it learns in (the first is the default), the option groups it reads besides the run's own,
-    and its SAC preset (``--preset``'s default for it), if it has a SAC."""
+    its SAC preset (``--preset``'s default for it), if it has a SAC, and whether it acts in the
+    environment (if not, its steps are gradient steps)."""
 
     settings: tuple[Setting, ...]
     groups: tuple[str, ...]
     sac_preset: str | None = None
+    acts: bool = True
 
 
 #: The methods with trainers of their own: behavior cloning (``bc``, ``bco``) and IQ-Learn, whose critic
 #: is its reward model (:mod:`rankgame.baselines.iq`).
 OWN_TRAINER_METHODS: dict[str, OwnTrainer] = {
-    "bc": OwnTrainer(("lfd",), ("cloning",)),
+    "bc": OwnTrainer(("lfd",), ("cloning",), acts=False),
     "bco": OwnTrainer(("lfo",), ("cloning",)),
     "iq-learn": OwnTrainer(("lfd", "lfo"), ("sac", "iq"), sac_preset="iq-learn"),
 }
