@@ -127,6 +127,7 @@ def _ablation(name: str, better: str, method: str, worse: Sequence[tuple[str, st
 
 _DOOR = "ablations-door/preferences"
 _NOISE = "ablations-door/preference-noise"
+_DOOR_100K = "ablations-door-100k/preferences"
 
 #: The paper's claims the results page checks.
 CLAIMS: tuple[Claim, ...] = (
@@ -158,6 +159,30 @@ CLAIMS: tuple[Claim, ...] = (
                 step=60_000,
                 metric="success",
             ),
+        ),
+    ),
+    Claim(
+        "RANK-PAL(pref) solves Door from the preferences that T-REX, given 10, 20 or 50 of them, does not solve",
+        "Sec. 5.2, App. 'Learning purely from offline rankings'",
+        "T-REX with 10, 20 or 50 preferences sampled from a SAC replay buffer does not solve Pen or Door",
+        tuple(
+            Comparison(
+                Side("rank-pal-pref", _DOOR_100K + "/pal-pref", "RANK-PAL(pref)"),
+                Side("trex", f"trex-door/p{count}", f"T-REX ({count} preferences)"),
+                "rankgame/Door-v0",
+                metric="success",
+            )
+            for count in (10, 20, 50)
+        ),
+    ),
+    Claim(
+        "from demonstrations, RANK-PAL(auto) scores higher at 100k than DAC and IQ-Learn",
+        "App. 'Evaluation of LfD'",
+        "rank-game among the most sample-efficient LfD methods, competitive with IQ-Learn, DAC and BC (figure only)",
+        tuple(
+            Comparison(Side("rank-pal-auto", archive, "RANK-PAL(auto) LfD"), Side(m, "baselines-lfd", name), env)
+            for m, name in (("dac", "DAC"), ("iq-learn", "IQ-Learn"))
+            for env, archive in (("Hopper-v5", "lfd-hopper"), ("Walker2d-v5", "lfd-walker"))
         ),
     ),
     Claim(
