@@ -26,12 +26,15 @@ ARCHIVES = (
     "stability-heldout-hopper-pal-still",  # the same with standing still ranked (--rankings.still-weight 0.2)
     "stability-heldout-hopper-pal-tuned",  # --recipe tuned (k 1, r_max 1, patience 1), held-out seeds
     "stability-heldout-hopper-ral",  # RANK-RAL(auto), the paper's settings, held-out seeds
+    "stability-heldout-walker-pal",  # RANK-PAL(auto) on Walker2d-v5, the paper's settings, held-out seeds
+    "stability-heldout-walker-ral",  # RANK-RAL(auto) on Walker2d-v5, the same
     "modern-preset-tuning",  # RANK-PAL(auto) with --preset modern, tuning seeds
     "stability-sac-true-reward",  # SAC on the true reward (rankgame expert), the stability reference
     "sac-modern-true-reward",  # the same with --preset modern
     "baselines-lfo",  # GAIfO, DACfO, BCO, f-IRL, OPOLO (LfO, one expert trajectory)
     "lfd-hopper",  # RANK-PAL(auto) and RANK-RAL(auto) from demonstrations (LfD, one expert trajectory)
-    "baselines-lfd",  # IQ-Learn (LfD, one expert trajectory)
+    "lfd-walker",  # RANK-PAL(auto) from demonstrations on Walker2d-v5
+    "baselines-lfd",  # BC, DAC and IQ-Learn (LfD, one expert trajectory)
 )
 
 #: Archive folders that only the claims table reads (the ablations and the non-stationary runs).
