@@ -28,6 +28,7 @@ ARCHIVES = (
     "stability-heldout-hopper-ral",  # RANK-RAL(auto), the paper's settings, held-out seeds
     "stability-heldout-walker-pal",  # RANK-PAL(auto) on Walker2d-v5, the paper's settings, held-out seeds
     "stability-heldout-walker-ral",  # RANK-RAL(auto) on Walker2d-v5, the same
+    "stability-heldout-walker-pal-still",  # RANK-PAL(auto) on Walker2d-v5 with --rankings.still-weight 0.2
     "modern-preset-tuning",  # RANK-PAL(auto) with --preset modern, tuning seeds
     "stability-sac-true-reward",  # SAC on the true reward (rankgame expert), the stability reference
     "sac-modern-true-reward",  # the same with --preset modern
