@@ -498,11 +498,11 @@ def _published_rows(methods: Sequence[str], tasks: Sequence[str], step: int | No
         if step is not None:
             curve = [released_figure(method, task, step) for task in tasks]
             if any(value is not None for value in curve):
-                label = f"*authors' released curve at {steps_text(step)} (moving average of 20 evaluations)*"
+                label = f"*authors' released LfO curve at {steps_text(step)} (moving average of 20 evaluations)*"
                 rows.append([method, label, *("-" if v is None else f"{v:g}" for v in curve)])
         paper = [paper_figure(method, task) for task in tasks]
         if any(value is not None for value in paper):
-            label = "*paper, Table 1 at 2M (mean ± std, 5 seeds)*"
+            label = "*paper, Table 1 (LfO) at 2M (mean ± std, 5 seeds)*"
             rows.append([method, label, *("-" if v is None else f"{v[0]:g} ± {v[1]:g}" for v in paper)])
     return rows
 
