@@ -36,15 +36,22 @@ def _rows(out: Path) -> list[dict[str, str]]:
 
 
 @pytest.mark.parametrize(
-    ("method", "reward_obs"), [("rank-pal-auto", "all"), ("rank-ral-auto", "all"), ("rank-pal-auto", "1")]
+    ("method", "reward_obs", "window"),
+    [
+        ("rank-pal-auto", "all", "1"),
+        ("rank-ral-auto", "all", "1"),
+        ("rank-pal-auto", "1", "1"),
+        ("rank-pal-auto", "all", "3"),
+    ],
 )
 def test_pal_and_ral_imitate_the_analytic_expert(
-    method: str, reward_obs: str, toy_expert_file: Path, tmp_path: Path
+    method: str, reward_obs: str, window: str, toy_expert_file: Path, tmp_path: Path
 ) -> None:
-    """``--reward-obs 1``: a reward that reads only the distance to the goal (entry 1) suffices."""
+    """``--reward-obs 1``: a reward that reads only the distance to the goal (entry 1) suffices;
+    ``--reward.policy-window 3``: so does paying the policy the mean of the last three rewards."""
     out = tmp_path / method
     args = [*TOY_TRAIN_ARGS, "--method", method, "--expert", str(toy_expert_file), "--steps", "2000"]
-    args += ["--reward-obs", reward_obs]
+    args += ["--reward-obs", reward_obs, "--reward.policy-window", window]
     assert main(["train", *args, "--eval-every", "1000", "--eval-episodes", "10", "--out", str(out)]) == 0
     rows = _rows(out)
     final = float(rows[-1]["normalized_score"])
@@ -114,7 +121,7 @@ def test_a_checkpoint_restores_every_piece_of_the_game(toy_expert_file: Path, tm
         expert=toy_expert_file,
         seed=3,
         sac=replace(SACConfig(), hidden_sizes=(16,), batch_size=32, start_steps=100, update_after=100),
-        reward=replace(RewardConfig(), hidden_sizes=(16,), batch_size=64),
+        reward=replace(RewardConfig(), hidden_sizes=(16,), batch_size=64, policy_window=3),
     )
     game = build_game(cfg)
     for step in range(1, 4 * game.n_pol + 1):
@@ -125,9 +132,11 @@ def test_a_checkpoint_restores_every_piece_of_the_game(toy_expert_file: Path, tm
 
     def arrays(g: RankingGame) -> dict[str, np.ndarray]:
         _, learner_arrays = g.learner.checkpoint()
-        return {**learner_arrays, **flatten_tree("reward", g.reward_state), **g.rankings.data.state_dict()}
+        reward = {**flatten_tree("reward", g.reward_state), **flatten_tree("policy_reward", g.policy_reward)}
+        return {**learner_arrays, **reward, **g.rankings.data.state_dict()}
 
     saved, loaded = arrays(game), arrays(restored)
+    assert int(game.policy_reward.count) == 4  # one reward per iteration
     assert saved.keys() == loaded.keys() and len(game.rankings.data.agent) == 4
     for key in saved:
         np.testing.assert_array_equal(saved[key], loaded[key], err_msg=key)

@@ -29,6 +29,7 @@ from rankgame.game.rankings import build_rankings
 from rankgame.game.selection import SELECTED_POLICY_NAME, SELECTION_COLUMN, PolicySelection, learned_return_ratio
 from rankgame.game.switch import TaskSwitch
 from rankgame.policy.players import iteration_steps, make_policy_player
+from rankgame.reward.averaging import RewardAverage
 from rankgame.reward.inputs import InputLayout, parse_obs_columns
 from rankgame.reward.losses import LOSSES
 from rankgame.reward.player import RewardPlayer
@@ -120,10 +121,13 @@ class RankingGame:
         self.player = RewardPlayer(
             self.layout, loss, cfg.reward, self.rankings, columns, spectral_norm=cfg.ablation.spectral_norm
         )
-        # The policy player relabels its batches with the reward player's current reward.
+        # The policy player relabels its batches with the reward player's current reward (or the mean of
+        # its last ones: --reward.policy-window).
         imitated = expert.trajectories[: cfg.expert_trajectories]
-        self.learner = make_policy_player(self.method.policy, self.env, cfg, self.player.reward_fn, imitated)
+        self.averaging = RewardAverage(self.player.reward_fn, cfg.reward.policy_window)
+        self.learner = make_policy_player(self.method.policy, self.env, cfg, self.averaging.reward_fn, imitated)
         self.reward_state = self.player.init(jax.random.fold_in(jax.random.key(cfg.seed), 1))
+        self.policy_reward = self.averaging.start(self.reward_state.params)
         self.rng = np.random.default_rng([cfg.seed, 1])
         self.scale = ScoreScale.of(expert, self.eval_env, cfg.seed)
         self.switch = switch
@@ -174,7 +178,7 @@ class RankingGame:
             self.apply_switch()
         if step == 1 and self.leader.moves_first:
             self.reward_state, self.reward_metrics = self.leader.opening(self.player, self.reward_state, self.rng)
-            self._check_reward_loss()
+            self._reward_moved()
         if step % self.n_pol != 0:
             self.env_step()
         elif self.learner.on_policy:
@@ -205,7 +209,7 @@ class RankingGame:
 
     def update_policy(self) -> None:
         """The policy player's updates that are due, on batches relabelled by the current reward."""
-        self.policy_metrics = self.learner.maybe_update(self.reward_state.params) or self.policy_metrics
+        self.policy_metrics = self.learner.maybe_update(self.policy_reward) or self.policy_metrics
 
     def reward_turn(self) -> None:
         """The reward player's move at the end of an iteration (nothing if no episode finished)."""
@@ -216,14 +220,16 @@ class RankingGame:
         self.finished = []
         if (turn := self.leader.fit(self.player, self.reward_state, self.rng)) is not None:
             self.reward_state, self.reward_metrics = turn
-            self._check_reward_loss()
+            self._reward_moved()
         expert = self.rankings.data.expert
         self.reward_metrics["reward/agent"] = self._mean_real_reward(new)
         self.reward_metrics["reward/expert"] = self._mean_real_reward(expert.reshape(-1, expert.shape[-1]))
 
-    def _check_reward_loss(self) -> None:
+    def _reward_moved(self) -> None:
+        """After a reward fit: stop on a non-finite loss, else pay the policy player the new reward."""
         if not np.isfinite(self.reward_metrics["reward/train_loss"]):
             raise NonFiniteError("the reward loss")
+        self.policy_reward = self.averaging.push(self.policy_reward, self.reward_state.params)
 
     def _mean_real_reward(self, inputs: np.ndarray) -> float:
         """Mean learned reward ``()`` over the inputs ``(N, d)`` that are real states, not absorbing ones."""
@@ -243,6 +249,8 @@ class RankingGame:
         if self.switch.expert is not None:
             self.rankings.replace_expert(self._switch_inputs, self.rng)
             self.scale = ScoreScale.of(self.switch.expert, self.eval_env, self.cfg.seed)
+            # The rewards fit to the old expert leave the policy player's window.
+            self.policy_reward = self.averaging.start(self.reward_state.params)
         self.selection.reset()
 
     # --- what the run harness asks ------------------------------------------------------------
@@ -297,6 +305,7 @@ class RankingGame:
         arrays = {
             **learner_arrays,
             **flatten_tree("reward", self.reward_state),
+            **self.averaging.state_dict(self.policy_reward),
             **self.rankings.state_dict(),
             FINISHED_KEY: finished,
         }
@@ -307,6 +316,7 @@ class RankingGame:
             self.apply_switch()
         self.learner.restore(metadata, arrays, seed=self.cfg.seed + int(metadata["env_steps"]))
         self.reward_state = unflatten_tree("reward", arrays, self.reward_state)
+        self.policy_reward = self.averaging.load(arrays, self.policy_reward, self.reward_state.params)
         self.rankings.load_state_dict(arrays)
         # A checkpoint inside an iteration (a run's last step, a signal) holds the episodes it had finished.
         self.finished = list(arrays[FINISHED_KEY])

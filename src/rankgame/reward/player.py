@@ -49,6 +49,9 @@ class RewardConfig:
     """Rewards given to the policy are bounded to [-r_max, r_max]."""
     gradient_penalty: float = 10.0
     """Weight of the gradient penalty of the losses that have one (logistic-gp: dac, dacfo; DAC's 10)."""
+    policy_window: int = 1
+    """The policy player is paid the mean of the reward player's last N rewards, one per iteration
+    (rankgame.reward.averaging); 1 pays the latest reward, as in the paper."""
 
     def validate(self) -> None:
         """Raise ``ValueError`` with a one-line reason if the values make no sense together."""
@@ -60,6 +63,7 @@ class RewardConfig:
                 (self.batch_size > 0, "reward batch_size must be positive"),
                 (self.r_max > 0, "r_max must be positive"),
                 (self.gradient_penalty >= 0, "reward gradient_penalty must be >= 0"),
+                (self.policy_window >= 1, "reward policy_window must be at least 1"),
             ]
         )
 
