@@ -334,6 +334,8 @@ def unused_settings(config: TrainConfig) -> list[str]:
         used.difference_update(_STILL_OPTIONS)
     if not LOSSES[method.loss].gradient_penalty:
         unused.append("reward.gradient_penalty")
+    if budget == "opening":  # one fixed reward: nothing to average
+        unused.append("reward.policy_window")
     names = [
         name for name in unused if name not in used and setting_value(config, name) != setting_value(defaults, name)
     ]
