@@ -215,6 +215,10 @@ def test_each_method_states_its_setting_and_input() -> None:
         ({"method": "rank-pal-auto", "reward": RewardConfig(gradient_penalty=1.0)}, "--reward.gradient-penalty"),
         ({"method": "trex", "rankings": RankingsConfig(k=2.0)}, "--rankings.k is not used by trex"),
         ({"method": "trex", "reward": RewardConfig(policy_window=3)}, "--reward.policy-window is not used by trex"),
+        (
+            {"method": "dacfo", "reward": RewardConfig(ranking_gradient_penalty=1.0)},
+            "--reward.ranking-gradient-penalty is not used by dacfo",
+        ),
     ],
 )
 def test_an_option_or_setting_a_method_cannot_use_is_refused(options: dict, message: str) -> None:

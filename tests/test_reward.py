@@ -376,3 +376,21 @@ def test_the_budget_option_swaps_the_leaders_budgets(
     chosen.fit(player, player.init(jax.random.key(0)), np.random.default_rng(1))
     # 30 real states, 2 passes of batch 4: ceil(60 / 4) = 15 gradient steps.
     assert (used, asked) == ((["holdout"], []) if expected == "holdout" else ([], [15]))
+
+
+def test_a_ranking_gradient_penalty_keeps_the_reward_from_jumping_between_close_inputs() -> None:
+    """Agent and expert states 0.17 apart: L_k alone fits targets 0 and 1, a reward whose slope is about
+    6; with the penalty (weight 10, slope 1 at the interpolations) the gap stays near the distance."""
+    gaps = {}
+    for weight in (0.0, 10.0):
+        rng = np.random.default_rng(0)
+        data = RankingData(np.full((1, 100, 3), 0.05, np.float32), np.array([0.0, 1.0]), np.array([0.0, 1.0]), 0.0)
+        data.add([np.full((100, 3), -0.05, np.float32)], rng)
+        cfg = RewardConfig(hidden_sizes=(32, 32), weight_decay=0.0, batch_size=256, ranking_gradient_penalty=weight)
+        player = RewardPlayer(_layout(3), LOSSES["regression"], cfg, Rankings(data, penalty_points=weight > 0))
+        state, _, metrics = player.fit_steps(player.init(jax.random.key(0)), 600, rng)
+        assert ("reward/gradient_penalty" in metrics) == (weight > 0)
+        low, high = np.asarray(player.reward(state.params, jnp.array([[-0.05] * 3, [0.05] * 3])))
+        gaps[weight] = high - low
+    assert gaps[0.0] > 0.9
+    assert gaps[10.0] < 0.5

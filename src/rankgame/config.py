@@ -332,6 +332,8 @@ def unused_settings(config: TrainConfig) -> list[str]:
     used = set(_RANKINGS_OPTIONS[method.rankings]) | set(_BUDGET_OPTIONS[budget])
     if not LOSSES[method.loss].regresses_targets:  # standing still is ranked by regressing targets
         used.difference_update(_STILL_OPTIONS)
+    if LOSSES[method.loss].gradient_penalty or method.rankings in ("offline", "marginal"):
+        unused.append("reward.ranking_gradient_penalty")
     if not LOSSES[method.loss].gradient_penalty:
         unused.append("reward.gradient_penalty")
     if budget == "opening":  # one fixed reward: nothing to average

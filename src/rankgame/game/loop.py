@@ -107,6 +107,7 @@ class RankingGame:
                 cfg.ablation.mixup,
                 noise_seed=[cfg.seed, 2],
                 ratio_seed=cfg.seed,
+                penalty_points=loss.gradient_penalty or cfg.reward.ranking_gradient_penalty > 0.0,
             )
         except ValueError as exc:
             raise RankGameError(f"bad rankings setting: {exc}") from None
@@ -208,7 +209,8 @@ class RankingGame:
             self._episode_obs, self._episode_acts = [], []
 
     def update_policy(self) -> None:
-        """The policy player's updates that are due, on batches relabelled by the current reward."""
+        """The policy player's updates that are due, on batches relabelled by the reward it is paid (the
+        current one, or the mean of the last ``--reward.policy-window`` ones)."""
         self.policy_metrics = self.learner.maybe_update(self.policy_reward) or self.policy_metrics
 
     def reward_turn(self) -> None:

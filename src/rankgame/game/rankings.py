@@ -396,6 +396,7 @@ def build_rankings(
     mixup: Mixup = "trajectory",
     noise_seed: int | Sequence[int] = 0,
     ratio_seed: int = 0,
+    penalty_points: bool | None = None,
 ) -> Rankings | PairwiseRankings | MarginalRankings:
     """The rankings of ``source``.
 
@@ -413,10 +414,13 @@ def build_rankings(
             paper's) or ``state`` (an expert state from a random time step, App. D's regularizer ablation).
         noise_seed: seed of the preference noise (pref only).
         ratio_seed: seed of the density-ratio classifier's parameters (marginal only).
+        penalty_points: sample the points of a gradient penalty (vanilla, auto and pref); default:
+            whether ``loss`` has one.
     Raises:
         ValueError: a one-line reason for a combination that makes no sense.
     """
     config.validate(source)
+    penalty = loss.gradient_penalty if penalty_points is None else penalty_points
     if mixup != "trajectory" and source != "auto":
         raise ValueError(f"state mixup is a variant of the auto rankings, not of {source}")
     if (preferences is not None) != (source in ("pref", "offline")):
@@ -441,7 +445,7 @@ def build_rankings(
         still_of = partial(_still_rankings, config.still_poses, lambdas, config.targets(lambdas), layout, time_aligned)
     parts = {"still_weight": config.still_weight, "still_of": still_of}
     if preferences is None:
-        return Rankings(data, penalty_points=loss.gradient_penalty, **parts)
+        return Rankings(data, penalty_points=penalty, **parts)
     if source == "pref" and not loss.regresses_targets:
         raise ValueError("pref rankings need a loss that regresses targets")
     positions = np.arange(len(preferences) + 1) / len(preferences)
@@ -450,4 +454,4 @@ def build_rankings(
     )
     if source == "offline":
         return PairwiseRankings(data, offline, config.snippet_length)
-    return Rankings(data, offline, config.pref_weight, loss.gradient_penalty, **parts)
+    return Rankings(data, offline, config.pref_weight, penalty, **parts)

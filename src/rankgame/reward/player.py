@@ -49,6 +49,10 @@ class RewardConfig:
     """Rewards given to the policy are bounded to [-r_max, r_max]."""
     gradient_penalty: float = 10.0
     """Weight of the gradient penalty of the losses that have one (logistic-gp: dac, dacfo; DAC's 10)."""
+    ranking_gradient_penalty: float = 0.0
+    """Weight of a gradient penalty at interpolations of agent and expert inputs added to the objective
+    of the losses without one of their own (L_k, SL_k, the supremum loss): a smoother reward; 0 (the
+    paper's) adds none."""
     policy_window: int = 1
     """The policy player is paid the mean of the reward player's last N rewards, one per iteration
     (rankgame.reward.averaging); 1 pays the latest reward, as in the paper."""
@@ -63,9 +67,14 @@ class RewardConfig:
                 (self.batch_size > 0, "reward batch_size must be positive"),
                 (self.r_max > 0, "r_max must be positive"),
                 (self.gradient_penalty >= 0, "reward gradient_penalty must be >= 0"),
+                (self.ranking_gradient_penalty >= 0, "reward ranking_gradient_penalty must be >= 0"),
                 (self.policy_window >= 1, "reward policy_window must be at least 1"),
             ]
         )
+
+    def penalty_weight(self, loss: RankingLoss) -> float:
+        """The gradient penalty's weight with ``loss``: its own penalty's, or the ranking losses' (0: none)."""
+        return self.gradient_penalty if loss.gradient_penalty else self.ranking_gradient_penalty
 
 
 @flax.struct.dataclass
@@ -108,7 +117,7 @@ class RewardPlayer:
         self.rankings = rankings
         self.net = RewardNet(config.hidden_sizes, columns, spectral_norm)
         self.tx = optax.chain(optax.add_decayed_weights(config.weight_decay), optax.adam(config.lr))
-        self._objective = rankings.objective(self.net.apply, loss, config.r_max, config.gradient_penalty)
+        self._objective = rankings.objective(self.net.apply, loss, config.r_max, config.penalty_weight(loss))
         self._update = jax.jit(self._update_many, donate_argnums=(0,))
         self._holdout_loss = jax.jit(self._weighted_loss)
         self._mean_reward = jax.jit(self._weighted_mean_reward)
