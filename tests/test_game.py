@@ -36,22 +36,22 @@ def _rows(out: Path) -> list[dict[str, str]]:
 
 
 @pytest.mark.parametrize(
-    ("method", "reward_obs", "window"),
+    ("method", "options"),
     [
-        ("rank-pal-auto", "all", "1"),
-        ("rank-ral-auto", "all", "1"),
-        ("rank-pal-auto", "1", "1"),
-        ("rank-pal-auto", "all", "3"),
+        ("rank-pal-auto", ()),
+        ("rank-ral-auto", ()),
+        ("rank-pal-auto", ("--reward-obs", "1")),
+        ("rank-pal-auto", ("--reward.policy-window", "3")),
+        ("rank-pal-auto", ("--reward.ranking-gradient-penalty", "10")),
     ],
 )
 def test_pal_and_ral_imitate_the_analytic_expert(
-    method: str, reward_obs: str, window: str, toy_expert_file: Path, tmp_path: Path
+    method: str, options: tuple[str, ...], toy_expert_file: Path, tmp_path: Path
 ) -> None:
-    """``--reward-obs 1``: a reward that reads only the distance to the goal (entry 1) suffices;
-    ``--reward.policy-window 3``: so does paying the policy the mean of the last three rewards."""
+    """``--reward-obs 1``: a reward that reads only the distance to the goal (entry 1) suffices; so does
+    paying the policy the mean of the last three rewards, or a reward kept smooth by a gradient penalty."""
     out = tmp_path / method
-    args = [*TOY_TRAIN_ARGS, "--method", method, "--expert", str(toy_expert_file), "--steps", "2000"]
-    args += ["--reward-obs", reward_obs, "--reward.policy-window", window]
+    args = [*TOY_TRAIN_ARGS, "--method", method, "--expert", str(toy_expert_file), "--steps", "2000", *options]
     assert main(["train", *args, "--eval-every", "1000", "--eval-episodes", "10", "--out", str(out)]) == 0
     rows = _rows(out)
     final = float(rows[-1]["normalized_score"])
@@ -59,6 +59,7 @@ def test_pal_and_ral_imitate_the_analytic_expert(
     assert final > 70.0, rows
     assert float(rows[-1]["reward/expert"]) > float(rows[-1]["reward/agent"])
     assert rows[-1]["eval_success"] == ""  # the toy task reports no success
+    assert ("reward/gradient_penalty" in rows[-1]) == ("--reward.ranking-gradient-penalty" in options)
 
 
 @pytest.mark.parametrize(

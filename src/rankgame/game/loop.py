@@ -149,8 +149,10 @@ class RankingGame:
 
     @property
     def log_columns(self) -> tuple[str, ...]:
-        """The columns of ``metrics.csv``: :data:`LOG_COLUMNS` and those of the method's loss and policy player."""
-        return (*LOG_COLUMNS, *self.player.loss.log_columns, *self.learner.log_columns)
+        """The columns of ``metrics.csv``: :data:`LOG_COLUMNS`, those of the method's loss and policy player,
+        and the gradient penalty's value when a ranking loss has one (``--reward.ranking-gradient-penalty``)."""
+        penalty = ("reward/gradient_penalty",) if self.cfg.reward.ranking_gradient_penalty > 0.0 else ()
+        return (*LOG_COLUMNS, *self.player.loss.log_columns, *penalty, *self.learner.log_columns)
 
     def _inputs(self, trajectories: list[Trajectory] | tuple[Trajectory, ...], what: str) -> np.ndarray:
         """Reward inputs ``(n, H, d)`` of recorded trajectories, padded to the horizon."""
