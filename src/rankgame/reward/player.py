@@ -51,8 +51,8 @@ class RewardConfig:
     """Weight of the gradient penalty of the losses that have one (logistic-gp: dac, dacfo; DAC's 10)."""
     ranking_gradient_penalty: float = 0.0
     """Weight of a gradient penalty at interpolations of agent and expert inputs added to the objective
-    of the losses without one of their own (L_k, SL_k, the supremum loss): a smoother reward; 0 (the
-    paper's) adds none."""
+    of the losses without one of their own (L_k, SL_k, the supremum loss, GAIL's logistic loss): a
+    smoother reward; 0 (the paper's) adds none."""
     policy_window: int = 1
     """The policy player is paid the mean of the reward player's last N rewards, one per iteration
     (rankgame.reward.averaging); 1 pays the latest reward, as in the paper."""
