@@ -31,6 +31,7 @@ ARCHIVES = (
     "stability-heldout-walker-pal-still",  # RANK-PAL(auto) on Walker2d-v5 with --rankings.still-weight 0.2
     "sample-efficiency-walker-pal-gp-10",  # Walker2d-v5 PAL, --reward.ranking-gradient-penalty 10, seeds 0-2
     "stability-heldout-walker-pal-gp-10",  # the same, held-out seeds
+    "sample-efficiency-walker-pal-gp-1",  # the same with weight 1, seeds 0-2
     "modern-preset-tuning",  # RANK-PAL(auto) with --preset modern, tuning seeds
     "stability-sac-true-reward",  # SAC on the true reward (rankgame expert), the stability reference
     "sac-modern-true-reward",  # the same with --preset modern
