@@ -167,12 +167,13 @@ CLAIMS: tuple[Claim, ...] = (
         "T-REX with 10, 20 or 50 preferences sampled from a SAC replay buffer does not solve Pen or Door",
         tuple(
             Comparison(
-                Side("rank-pal-pref", _DOOR_100K + "/pal-pref", "RANK-PAL(pref)"),
+                Side("rank-pal-pref", variant, f"RANK-PAL(pref) ({count} preferences)"),
                 Side("trex", f"trex-door/p{count}", f"T-REX ({count} preferences)"),
                 "rankgame/Door-v0",
                 metric="success",
             )
-            for count in (10, 20, 50)
+            # both sides read the same preferences: the shipped 10, or the 20 and 50 drawn for T-REX
+            for count, variant in ((10, _DOOR_100K + "/pal-pref"), (20, "trex-door/p20"), (50, "trex-door/p50"))
         ),
     ),
     Claim(
