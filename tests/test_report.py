@@ -344,11 +344,12 @@ def test_a_claim_is_judged_from_its_comparisons_with_runs_on_both_sides() -> Non
 
     higher = Claim("x", "s", "p", (Comparison(ours, theirs, "Hopper-v5"), Comparison(ours, absent, "Hopper-v5")))
     measured, verdict = judge(higher, values_at, collapses)
-    # means 70 and 40: the comparison holds; the other has no runs on one side and does not count
+    # means 70 and 40: the comparison holds; the other has no runs on one side and does not count.
+    # sample stds: sqrt((10^2 + 10^2) / 1) = 14.1 and sqrt((10^2 + 0 + 10^2) / 2) = 10.0
     assert verdict == "reproduced"
-    assert (
-        measured
-        == "ours vs theirs, Hopper-v5 at 100k: 70.0 (n=2) vs 40.0 (n=3); ours vs bco, Hopper-v5 at 100k: not run"
+    assert measured == (
+        "ours vs theirs, Hopper-v5 at 100k: 70.0 ± 14.1 (n=2) vs 40.0 ± 10.0 (n=3); "
+        "ours vs bco, Hopper-v5 at 100k: not run"
     )
     reversed_claim = Claim("x", "s", "p", (Comparison(theirs, ours, "Hopper-v5"),))
     assert judge(reversed_claim, values_at, collapses)[1] == "not reproduced"
@@ -374,8 +375,10 @@ def test_the_claims_table_reads_success_rates_and_names_the_verdict(tmp_path: Pa
             (run / "config.json").write_text(json.dumps(config))
     lines = claims_section(group_runs(load_runs([tmp_path / "ablations-door"])), 80.0, 50.0)
     (row,) = [line for line in lines if line.startswith(f"| {door.statement}")]
-    # success rates: (1.0 + 0.5) / 2 = 75% against (0.2 + 0.0) / 2 = 10%
-    assert "rankgame/Door-v0 at 60k: 75% (n=2) vs 10% (n=2)" in row and row.endswith("| **reproduced** |")
+    # success rates: (1.0 + 0.5) / 2 = 75% against (0.2 + 0.0) / 2 = 10%; sample stds
+    # sqrt(2 * 0.25^2) = 35% and sqrt(2 * 0.1^2) = 14%
+    assert "rankgame/Door-v0 at 60k: 75% ± 35% (n=2) vs 10% ± 14% (n=2)" in row
+    assert row.endswith("| **reproduced** |")
 
 
 def test_the_longest_horizon_says_that_bcs_steps_are_gradient_steps(archive: Path, tmp_path: Path) -> None:

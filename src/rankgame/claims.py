@@ -9,9 +9,10 @@ the method's largest group on that task, whatever its folder.
 
 :func:`judge` gives a claim its verdict: ``reproduced`` when every comparison that has runs on both
 sides holds, ``not reproduced`` when one of them does not, ``not run`` when none has runs on both sides.
-Means over few seeds decide, so every measured figure shows its number of runs. :data:`CLAIMS` refers to
-the archive folders of ``benchmarks/results`` (the results page's); with other runs most claims read
-``not run``.
+Means over few seeds decide, so every measured figure shows the sample standard deviation and the
+number of runs beside its mean: a verdict whose gap is smaller than the spread is not a significant
+margin. :data:`CLAIMS` refers to the archive folders of ``benchmarks/results`` (the results page's);
+with other runs most claims read ``not run``.
 """
 
 from __future__ import annotations
@@ -74,8 +75,14 @@ def _steps(step: int) -> str:
 
 
 def _measure(values: Sequence[float], metric: Metric) -> str:
+    """The mean of ``values`` and, from two runs on, their sample standard deviation (n - 1), with n."""
+    scale, unit, digits = (100.0, "%", 0) if metric == "success" else (1.0, "", 1)
     mean = sum(values) / len(values)
-    return f"{100 * mean:.0f}%" if metric == "success" else f"{mean:.1f}"
+    text = f"{scale * mean:.{digits}f}{unit}"
+    if len(values) > 1:
+        std = (sum((v - mean) ** 2 for v in values) / (len(values) - 1)) ** 0.5
+        text += f" ± {scale * std:.{digits}f}{unit}"
+    return f"{text} (n={len(values)})"
 
 
 def judge(claim: Claim, values_at: ValuesAt, collapses: Collapses) -> tuple[str, Verdict]:
@@ -103,7 +110,7 @@ def judge(claim: Claim, values_at: ValuesAt, collapses: Collapses) -> tuple[str,
             parts.append(f"{c.better.name} vs {c.worse.name}, {where}: not run")
             continue
         held.append(sum(x) / len(x) > sum(y) / len(y))
-        text = f"{_measure(x, c.metric)} (n={len(x)}) vs {_measure(y, c.metric)} (n={len(y)})"
+        text = f"{_measure(x, c.metric)} vs {_measure(y, c.metric)}"
         parts.append(f"{c.better.name} vs {c.worse.name}, {where}: {text}")
     verdict: Verdict = "not run" if not held else "reproduced" if all(held) else "not reproduced"
     return "; ".join(parts), verdict

@@ -551,7 +551,8 @@ def claims_section(groups: dict[GroupKey, list[Run]], reach: float, below: float
         "score (success rate on Door) at the step named, or for stability a smaller share of evaluations below "
         f"{below:g} after first reaching {reach:g}. Verdict: reproduced when every comparison with runs on "
         "both sides holds, not reproduced when one does not, not run when none has runs. Means over few seeds "
-        "decide, so each figure gives its number of runs (n)."
+        "decide, so each figure gives the sample standard deviation and the number of runs (n): where the gap "
+        "between the means is smaller than the spread, a verdict is not a significant margin."
     )
     header = ["claim", "where", "paper", "ours (A vs B)", "verdict"]
     return ["## Claims of the paper", "", intro, "", *_table(header, body), ""]
