@@ -21,6 +21,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
+from rankgame.stats import mean_and_sample_std
+
 Metric = Literal["score", "success"]
 Verdict = Literal["reproduced", "not reproduced", "not run"]
 LOCOMOTION = ("Hopper-v5", "HalfCheetah-v5", "Walker2d-v5", "Ant-v5")
@@ -77,10 +79,9 @@ def _steps(step: int) -> str:
 def _measure(values: Sequence[float], metric: Metric) -> str:
     """The mean of ``values`` and, from two runs on, their sample standard deviation (n - 1), with n."""
     scale, unit, digits = (100.0, "%", 0) if metric == "success" else (1.0, "", 1)
-    mean = sum(values) / len(values)
+    mean, std = mean_and_sample_std(values)
     text = f"{scale * mean:.{digits}f}{unit}"
-    if len(values) > 1:
-        std = (sum((v - mean) ** 2 for v in values) / (len(values) - 1)) ** 0.5
+    if std is not None:
         text += f" ± {scale * std:.{digits}f}{unit}"
     return f"{text} (n={len(values)})"
 
