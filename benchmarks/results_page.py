@@ -42,7 +42,7 @@ ARCHIVES = (
 )
 
 #: Archive folders that only the claims table reads (the ablations and the non-stationary runs).
-CLAIM_ARCHIVES = ("ablations", "ablations-door", "ablations-door-100k", "trex-door", "nonstationary")
+CLAIM_ARCHIVES = ("ablations", "ablations-door", "ablations-door-100k", "trex-door", "trex-pen", "nonstationary")
 
 
 def main() -> None:

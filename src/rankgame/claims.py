@@ -170,7 +170,7 @@ CLAIMS: tuple[Claim, ...] = (
         ),
     ),
     Claim(
-        "RANK-PAL(pref) solves Door from the preferences that T-REX, given 10, 20 or 50 of them, does not solve",
+        "RANK-PAL(pref) solves Pen and Door from preferences that T-REX, given 10, 20 or 50 of them, does not solve",
         "Sec. 5.2, App. 'Learning purely from offline rankings'",
         "T-REX with 10, 20 or 50 preferences sampled from a SAC replay buffer does not solve Pen or Door",
         tuple(
@@ -182,6 +182,16 @@ CLAIMS: tuple[Claim, ...] = (
             )
             # both sides read the same preferences: the shipped 10, or the 20 and 50 drawn for T-REX
             for count, variant in ((10, _DOOR_100K + "/pal-pref"), (20, "trex-door/p20"), (50, "trex-door/p50"))
+        )
+        + (
+            # Pen: the shipped 10 preferences, the Pen expert's SAC settings, 500k steps
+            Comparison(
+                Side("rank-pal-pref", "trex-pen/p10", "RANK-PAL(pref) (10 preferences)"),
+                Side("trex", "trex-pen/p10", "T-REX (10 preferences)"),
+                "rankgame/Pen-v0",
+                step=500_000,
+                metric="success",
+            ),
         ),
     ),
     Claim(
