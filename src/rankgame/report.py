@@ -548,7 +548,7 @@ def claims_section(groups: dict[GroupKey, list[Run]], reach: float, below: float
         body.append([claim.statement, claim.source, claim.paper, measured, f"**{verdict}**"])
     intro = (
         "Each claim is tested by comparisons of groups of runs (`rankgame.claims`): higher mean normalized "
-        "score (success rate on Door) at the step named, or for stability a smaller share of evaluations below "
+        "score (success rate on Pen and Door) at the step named, or for stability a smaller share of evaluations below "
         f"{below:g} after first reaching {reach:g}. Verdict: reproduced when every comparison with runs on "
         "both sides holds, not reproduced when one does not, not run when none has runs. Means over few seeds "
         "decide, so each figure gives the sample standard deviation and the number of runs (n): where the gap "
