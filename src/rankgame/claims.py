@@ -183,15 +183,17 @@ CLAIMS: tuple[Claim, ...] = (
             # both sides read the same preferences: the shipped 10, or the 20 and 50 drawn for T-REX
             for count, variant in ((10, _DOOR_100K + "/pal-pref"), (20, "trex-door/p20"), (50, "trex-door/p50"))
         )
-        + (
-            # Pen: the shipped 10 preferences, the Pen expert's SAC settings, 500k steps
+        + tuple(
+            # Pen: the Pen expert's SAC settings, 500k steps; the shipped 10 preferences, or 20 and 50
+            # drawn from a rerun of the Pen expert's training
             Comparison(
-                Side("rank-pal-pref", "trex-pen/p10", "RANK-PAL(pref) (10 preferences)"),
-                Side("trex", "trex-pen/p10", "T-REX (10 preferences)"),
+                Side("rank-pal-pref", f"trex-pen/p{count}", f"RANK-PAL(pref) ({count} preferences)"),
+                Side("trex", f"trex-pen/p{count}", f"T-REX ({count} preferences)"),
                 "rankgame/Pen-v0",
                 step=500_000,
                 metric="success",
-            ),
+            )
+            for count in (10, 20, 50)
         ),
     ),
     Claim(
