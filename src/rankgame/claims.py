@@ -158,13 +158,19 @@ CLAIMS: tuple[Claim, ...] = (
     Claim(
         "offline preferences solve Door, which RANK-PAL(auto) from observations alone does not",
         "Sec. 5.2, Fig. 4",
-        "RANK-PAL(pref) near-expert success; the LfO methods near 0",
+        "RANK-PAL(pref) and RANK-RAL(pref) near-expert success; the LfO methods near 0",
         (
             Comparison(
                 Side("rank-pal-pref", _DOOR + "/pal-pref", "RANK-PAL(pref)"),
                 Side("rank-pal-auto", _DOOR + "/pal-auto", "RANK-PAL(auto)"),
                 "rankgame/Door-v0",
                 step=60_000,
+                metric="success",
+            ),
+            Comparison(
+                Side("rank-ral-pref", _DOOR_100K + "/ral-pref", "RANK-RAL(pref)"),
+                Side("rank-pal-auto", _DOOR_100K + "/pal-auto", "RANK-PAL(auto)"),
+                "rankgame/Door-v0",
                 metric="success",
             ),
         ),
