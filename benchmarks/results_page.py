@@ -41,8 +41,17 @@ ARCHIVES = (
     "baselines-lfd",  # BC, DAC and IQ-Learn (LfD, one expert trajectory)
 )
 
-#: Archive folders that only the claims table reads (the ablations and the non-stationary runs).
-CLAIM_ARCHIVES = ("ablations", "ablations-door", "ablations-door-100k", "trex-door", "trex-pen", "nonstationary")
+#: Archive folders that only the claims table reads (the ablations, the preference runs on Pen and Door and the
+#: non-stationary runs).
+CLAIM_ARCHIVES = (
+    "ablations",
+    "ablations-door",
+    "ablations-door-100k",
+    "trex-door",
+    "trex-pen",
+    "pen",
+    "nonstationary",
+)
 
 
 def main() -> None:

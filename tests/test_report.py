@@ -362,7 +362,7 @@ def test_the_claims_table_reads_success_rates_and_names_the_verdict(tmp_path: Pa
     from rankgame.claims import CLAIMS
     from rankgame.report import claims_section, group_runs, load_runs
 
-    door = [claim for claim in CLAIMS if claim.statement.startswith("offline preferences solve Door")][0]
+    door = [claim for claim in CLAIMS if claim.statement.startswith("offline preferences solve Pen and Door")][0]
     for label, method, successes in (
         ("pal-pref", "rank-pal-pref", (1.0, 0.5)),
         ("pal-auto", "rank-pal-auto", (0.2, 0.0)),
