@@ -6,7 +6,7 @@ maximum, as JSON lines and as a Markdown table. With ``--column eval_success --a
 the Pen and Door evaluations in which any episode succeeded; with ``--column normalized_score`` it
 gives, for instance, the mean of the evaluations from 250k to 300k.
 
-    python benchmarks/eval_windows.py benchmarks/results/pen/rank-pal-pref-expert-sac-s0 \\
+    python benchmarks/eval_windows.py benchmarks/results/pen/expert-sac/rank-pal-pref-s0 \\
         --column eval_success --above 0 --windows 10000:500000 510000:1000000
 """
 

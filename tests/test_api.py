@@ -126,7 +126,7 @@ def test_python_dash_m_rankgame_runs_the_command_line() -> None:
 
 def test_archived_policy_files_of_the_same_format_version_still_load() -> None:
     """Policy files written before SAC's initializer option was removed name it in their header."""
-    archived = Path(__file__).resolve().parents[1] / "benchmarks/results/pen/rank-pal-pref-expert-sac-10traj-s0"
+    archived = Path(__file__).resolve().parents[1] / "benchmarks/results/pen/expert-sac-10traj/rank-pal-pref-s0"
     policy = rankgame.load_policy(archived / "policy.msgpack")
     assert policy.env_id == "rankgame/Pen-v0" and policy.metadata["env_steps"] == 1_000_000
     act = policy.policy_fn()(np.zeros(policy.sac.obs_dim - 1, np.float32))  # it reads the absorbing flag too

@@ -175,11 +175,10 @@ CLAIMS: tuple[Claim, ...] = (
             ),
         )
         + tuple(
-            # Pen: the Pen expert's SAC settings, the shipped 10 preferences, at 500k; the RANK-PAL(auto) run
-            # with those settings is the one in "pen" that reaches 500k
+            # Pen: the Pen expert's SAC settings, the shipped 10 preferences, at 500k
             Comparison(
                 Side(method, "trex-pen/p10", label),
-                Side("rank-pal-auto", "pen", "RANK-PAL(auto)"),
+                Side("rank-pal-auto", "pen/expert-sac", "RANK-PAL(auto)"),
                 "rankgame/Pen-v0",
                 step=500_000,
                 metric="success",
